@@ -1,0 +1,20 @@
+"""Base classes every card derives from: unknown keys are errors, cards are frozen after validation."""
+
+from typing import Annotated
+
+from pydantic import BaseModel, ConfigDict, Field
+
+
+class Card(BaseModel):
+    """A block of the deck. Unknown keys are rejected (with a did-you-mean, see ``deck.errors``)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, validate_default=True)
+
+
+Density = Annotated[float, Field(gt=0.0, description="Mass density [t/mm^3 in mm-t-s units].")]
+
+
+class MaterialCard(Card):
+    """Base of every material card."""
+
+    density: Density

@@ -1,0 +1,3 @@
+"""Plug-ins: every material, element formulation and effect module, imported explicitly (each registers itself)."""
+
+from fdeck.physics.materials import elastic, neo_hookean  # noqa: F401

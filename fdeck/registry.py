@@ -1,0 +1,95 @@
+"""Registries of material cards, element formulations and effects.
+
+Each plug-in module registers itself with one call at its end, and ``fdeck.physics`` imports every plug-in module
+explicitly. The deck builds its discriminated unions from these tables, the compiler looks kinds up here: nowhere
+else does code branch on a card's ``type``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+
+@dataclass(frozen=True)
+class MaterialKind:
+    """A constitutive law.
+
+    card: pydantic model with ``type: Literal[name]`` and ``density``.
+    pack(card) -> float64 array (n_param,): canonical parameters, the same for every element of a section.
+    evaluate(F, frame, params, state, P, psi, modulus): numba kernel over elements, shapes
+        F (n_el, n_qp, 3, 3) deformation gradient; frame (n_el, 3, 3) rows = warp, weft, thickness unit vectors
+        in the reference configuration; params (n_el, n_param); state (n_el, n_qp, n_state) updated in place;
+        outputs P (n_el, n_qp, 3, 3) first Piola-Kirchhoff stress [MPa], psi (n_el, n_qp) energy density per
+        reference volume [MPa = mJ/mm3], modulus (n_el, n_qp) current P-wave modulus [MPa] for the stable step.
+    point(F, frame, params, state, P) -> (psi, modulus): the same at one point (3x3 arrays), for tests.
+    n_state: history variables per integration point (0 for hyperelastic laws).
+    diagnostics: names of the per-point output fields returned by ``diagnose``.
+    diagnose(F, frame, params) -> float64 array (len(diagnostics),) at one point, or None.
+    """
+
+    name: str
+    card: type
+    pack: Callable[[Any], Any]
+    evaluate: Callable
+    point: Callable
+    n_state: int = 0
+    diagnostics: tuple[str, ...] = ()
+    diagnose: Callable | None = None
+
+
+@dataclass(frozen=True)
+class EffectKind:
+    """A boundary condition, load, damping or section-level add-on.
+
+    card: pydantic model with ``type: Literal[name]``.
+    build(card, problem) -> engine.effect.Effect, called by the compiler only for effects a deck names.
+    section: 'boundary' or 'loads' (the deck list the card goes in) or 'section' (an add-on of a section).
+    """
+
+    name: str
+    card: type
+    build: Callable
+    section: str
+
+
+@dataclass(frozen=True)
+class FormulationKind:
+    """An element formulation (a way to turn nodal positions into forces for one element shape).
+
+    build(section_arrays) -> engine group object; see fdeck.physics.elements.
+    """
+
+    name: str
+    build: Callable
+    description: str = ""
+    nodes_per_element: int = 8
+
+
+MATERIALS: dict[str, MaterialKind] = {}
+EFFECTS: dict[str, EffectKind] = {}
+FORMULATIONS: dict[str, FormulationKind] = {}
+
+
+
+def _add(table: dict, kind) -> None:
+    if kind.name in table:
+        raise ValueError(f"{kind.name!r} is registered twice")
+    table[kind.name] = kind
+
+
+def register_material(kind: MaterialKind) -> None:
+    _add(MATERIALS, kind)
+
+
+def register_effect(kind: EffectKind) -> None:
+    _add(EFFECTS, kind)
+
+
+def register_formulation(kind: FormulationKind) -> None:
+    _add(FORMULATIONS, kind)
+
+
+def load_plugins() -> None:
+    """Import every plug-in module (each registers itself)."""
+    import fdeck.physics  # noqa: F401
