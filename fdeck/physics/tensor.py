@@ -33,14 +33,21 @@ def inv3(A, out):
 
 
 @njit
-def sym_eig_max(A):
-    """Largest eigenvalue of a symmetric (3, 3) array (trigonometric closed form)."""
-    p1 = A[0, 1] ** 2 + A[0, 2] ** 2 + A[1, 2] ** 2
-    q = (A[0, 0] + A[1, 1] + A[2, 2]) / 3.0
+def sym_eig_max6(a00, a11, a22, a01, a12, a02):
+    """Largest eigenvalue of the symmetric matrix with the given components (trigonometric closed form;
+    Smith, Comm. ACM 4 (1961) 168). No allocation: usable in hot kernels."""
+    p1 = a01 * a01 + a02 * a02 + a12 * a12
+    q = (a00 + a11 + a22) / 3.0
     if p1 <= 1e-30 * (q * q + 1e-300):
-        return max(A[0, 0], A[1, 1], A[2, 2])
-    p2 = (A[0, 0] - q) ** 2 + (A[1, 1] - q) ** 2 + (A[2, 2] - q) ** 2 + 2.0 * p1
-    p = math.sqrt(p2 / 6.0)
-    B = (A - q * np.eye(3)) / p
-    r = min(1.0, max(-1.0, 0.5 * det3(B)))
+        return max(a00, a11, a22)
+    b00, b11, b22 = a00 - q, a11 - q, a22 - q
+    p = math.sqrt((b00 * b00 + b11 * b11 + b22 * b22 + 2.0 * p1) / 6.0)
+    det = (b00 * (b11 * b22 - a12 * a12) - a01 * (a01 * b22 - a12 * a02) + a02 * (a01 * a12 - b11 * a02))
+    r = min(1.0, max(-1.0, 0.5 * det / (p * p * p)))
     return q + 2.0 * p * math.cos(math.acos(r) / 3.0)
+
+
+@njit
+def sym_eig_max(A):
+    """Largest eigenvalue of a symmetric (3, 3) array."""
+    return sym_eig_max6(A[0, 0], A[1, 1], A[2, 2], A[0, 1], A[1, 2], A[0, 2])

@@ -12,7 +12,7 @@ from pydantic import Field
 
 from fdeck.deck.base import MaterialCard
 from fdeck.jit import njit, njit_parallel, prange
-from fdeck.physics.tensor import sym_eig_max
+from fdeck.physics.tensor import sym_eig_max6
 from fdeck.registry import MaterialKind, register_material
 
 
@@ -32,18 +32,31 @@ def pack(card: LinearElastic) -> np.ndarray:
 
 @njit
 def point(F, frame, params, state, P):
-    """First Piola-Kirchhoff stress into P (3, 3); returns (psi [MPa], P-wave modulus [MPa])."""
+    """First Piola-Kirchhoff stress into P (3, 3); returns (psi [MPa], P-wave modulus [MPa]).
+
+    Written with scalars: no allocation per point (allocations dominate the cost of small kernels and contend
+    between threads).
+    """
     lam, mu = params[0], params[1]
-    E = 0.5 * (F.T @ F - np.eye(3))
-    trE = E[0, 0] + E[1, 1] + E[2, 2]
-    S = 2.0 * mu * E
-    for i in range(3):
-        S[i, i] += lam * trE
-    P[:, :] = F @ S
-    psi = 0.5 * lam * trE * trE + mu * np.sum(E * E)
+    # Green-Lagrange strain E = (F^T F - I) / 2, symmetric: 6 components
+    e00 = 0.5 * (F[0, 0] * F[0, 0] + F[1, 0] * F[1, 0] + F[2, 0] * F[2, 0] - 1.0)
+    e11 = 0.5 * (F[0, 1] * F[0, 1] + F[1, 1] * F[1, 1] + F[2, 1] * F[2, 1] - 1.0)
+    e22 = 0.5 * (F[0, 2] * F[0, 2] + F[1, 2] * F[1, 2] + F[2, 2] * F[2, 2] - 1.0)
+    e01 = 0.5 * (F[0, 0] * F[0, 1] + F[1, 0] * F[1, 1] + F[2, 0] * F[2, 1])
+    e12 = 0.5 * (F[0, 1] * F[0, 2] + F[1, 1] * F[1, 2] + F[2, 1] * F[2, 2])
+    e02 = 0.5 * (F[0, 0] * F[0, 2] + F[1, 0] * F[1, 2] + F[2, 0] * F[2, 2])
+    tr = e00 + e11 + e22
+    s00, s11, s22 = lam * tr + 2.0 * mu * e00, lam * tr + 2.0 * mu * e11, lam * tr + 2.0 * mu * e22
+    s01, s12, s02 = 2.0 * mu * e01, 2.0 * mu * e12, 2.0 * mu * e02
+    for i in range(3):  # P = F S
+        P[i, 0] = F[i, 0] * s00 + F[i, 1] * s01 + F[i, 2] * s02
+        P[i, 1] = F[i, 0] * s01 + F[i, 1] * s11 + F[i, 2] * s12
+        P[i, 2] = F[i, 0] * s02 + F[i, 1] * s12 + F[i, 2] * s22
+    psi = 0.5 * lam * tr * tr + mu * (e00 * e00 + e11 * e11 + e22 * e22 + 2.0 * (e01 * e01 + e12 * e12 + e02 * e02))
     # Reference acoustic tensor A = dP/dF: delta_ik S_JL + F_iI C_IJKL F_kK, bounded by
     # max eig(S) + (lam + 2 mu) max eig(F^T F); exact (lam + 2 mu) at rest.
-    return psi, max(0.0, sym_eig_max(S)) + (lam + 2.0 * mu) * sym_eig_max(F.T @ F)
+    c_max = 1.0 + 2.0 * sym_eig_max6(e00, e11, e22, e01, e12, e02)
+    return psi, max(0.0, sym_eig_max6(s00, s11, s22, s01, s12, s02)) + (lam + 2.0 * mu) * c_max
 
 
 @njit_parallel

@@ -11,7 +11,7 @@ from pydantic import Field
 
 from fdeck.deck.base import MaterialCard
 from fdeck.jit import njit, njit_parallel, prange
-from fdeck.physics.tensor import inv3, sym_eig_max
+from fdeck.physics.tensor import sym_eig_max6
 from fdeck.registry import MaterialKind, register_material
 
 
@@ -31,18 +31,41 @@ def pack(card: NeoHookean) -> np.ndarray:
 
 @njit
 def point(F, frame, params, state, P):
-    """First Piola-Kirchhoff stress into P (3, 3); returns (psi [MPa], P-wave modulus [MPa])."""
+    """First Piola-Kirchhoff stress into P (3, 3); returns (psi [MPa], P-wave modulus [MPa]).
+
+    P = mu F + (lam ln J - mu) F^-T, with F^-T = cof(F) / J built in place in P (no allocation per point).
+    """
     lam, mu = params[0], params[1]
-    Finv = np.empty((3, 3))
-    J = inv3(F, Finv)
+    # cofactor matrix of F, written into P
+    P[0, 0] = F[1, 1] * F[2, 2] - F[1, 2] * F[2, 1]
+    P[0, 1] = F[1, 2] * F[2, 0] - F[1, 0] * F[2, 2]
+    P[0, 2] = F[1, 0] * F[2, 1] - F[1, 1] * F[2, 0]
+    P[1, 0] = F[0, 2] * F[2, 1] - F[0, 1] * F[2, 2]
+    P[1, 1] = F[0, 0] * F[2, 2] - F[0, 2] * F[2, 0]
+    P[1, 2] = F[0, 1] * F[2, 0] - F[0, 0] * F[2, 1]
+    P[2, 0] = F[0, 1] * F[1, 2] - F[0, 2] * F[1, 1]
+    P[2, 1] = F[0, 2] * F[1, 0] - F[0, 0] * F[1, 2]
+    P[2, 2] = F[0, 0] * F[1, 1] - F[0, 1] * F[1, 0]
+    J = F[0, 0] * P[0, 0] + F[0, 1] * P[0, 1] + F[0, 2] * P[0, 2]
     logJ = np.log(J)  # J <= 0 gives nan: the engine's monitor stops the run and names the element
-    Finv_T = Finv.T
-    # P = F S = mu (F - F^-T) + lam ln J F^-T
-    P[:, :] = mu * (F - Finv_T) + lam * logJ * Finv_T
-    psi = 0.5 * mu * (np.sum(F * F) - 3.0) - mu * logJ + 0.5 * lam * logJ * logJ
+    # C^-1 = F^-1 F^-T = cof^T cof / J^2: its largest eigenvalue is 1 / sigma_min(F)^2
+    r2 = 1.0 / (J * J)
+    b00 = (P[0, 0] ** 2 + P[1, 0] ** 2 + P[2, 0] ** 2) * r2
+    b11 = (P[0, 1] ** 2 + P[1, 1] ** 2 + P[2, 1] ** 2) * r2
+    b22 = (P[0, 2] ** 2 + P[1, 2] ** 2 + P[2, 2] ** 2) * r2
+    b01 = (P[0, 0] * P[0, 1] + P[1, 0] * P[1, 1] + P[2, 0] * P[2, 1]) * r2
+    b12 = (P[0, 1] * P[0, 2] + P[1, 1] * P[1, 2] + P[2, 1] * P[2, 2]) * r2
+    b02 = (P[0, 0] * P[0, 2] + P[1, 0] * P[1, 2] + P[2, 0] * P[2, 2]) * r2
+    c = (lam * logJ - mu) / J
+    i1 = 0.0
+    for i in range(3):
+        for j in range(3):
+            i1 += F[i, j] * F[i, j]
+            P[i, j] = mu * F[i, j] + c * P[i, j]
+    psi = 0.5 * mu * (i1 - 3.0) - mu * logJ + 0.5 * lam * logJ * logJ
     # Reference acoustic tensor of A = dP/dF = mu I + (mu - lam ln J) F^-T(x)F^-1 + lam F^-T x F^-T is bounded by
     # mu + (|mu - lam ln J| + lam) / sigma_min(F)^2; exact (lam + 2 mu) at rest.
-    return psi, mu + (abs(mu - lam * logJ) + lam) * sym_eig_max(Finv @ Finv_T)
+    return psi, mu + (abs(mu - lam * logJ) + lam) * sym_eig_max6(b00, b11, b22, b01, b12, b02)
 
 
 @njit_parallel

@@ -1,0 +1,126 @@
+"""Performance harness (not part of the test suite).
+
+Measures, per hexahedron formulation and material, on structured blocks of about 10 k and 100 k elements:
+microseconds per element-cycle of the whole explicit cycle (elements, gather, integrator, monitors) after a
+warm-up, on one thread and on all threads; element-array memory per element; numba compile time (cold cache) and
+cached start-up of `fdeck run` on a small deck. Writes benchmarks/results.json.
+
+    python benchmarks/bench.py            # full run (about 10 minutes on 2 cores)
+    python benchmarks/bench.py --quick    # 10 k elements only
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
+
+MATERIALS = {
+    "linear_elastic": {"type": "linear_elastic", "density": 1e-9, "youngs_modulus": 1.0e4, "poisson_ratio": 0.3},
+    "neo_hookean": {"type": "neo_hookean", "density": 1e-9, "youngs_modulus": 1.0e4, "poisson_ratio": 0.3},
+    "fabric_hyper_3weave": {"type": "fabric_hyper", "preset": "3weave"},
+}
+CASES = [("reduced", "linear_elastic"), ("full", "linear_elastic"), ("fbar", "linear_elastic"),
+         ("fbar", "neo_hookean"), ("fbar", "fabric_hyper_3weave"), ("reduced", "fabric_hyper_3weave")]
+
+
+def deck(form: str, mat: str, divisions, cycles: int) -> dict:
+    return {
+        "mesh": {"block": {"size": [float(d) for d in divisions], "divisions": list(divisions)}},
+        "materials": {"m": MATERIALS[mat]},
+        "sections": [{"material": "m", "formulation": form}],
+        "boundary": [{"type": "fixed", "nodes": "zmin"},
+                     {"type": "velocity", "nodes": "zmax", "dofs": ["z"], "value": -1.0, "amplitude": "constant"}],
+        "steps": [{"duration": 1.0, "max_cycles": cycles}],
+        "output": {"frames": 1, "history_points": 2},
+    }
+
+
+def measure(form: str, mat: str, divisions, cycles: int, threads: int) -> dict:
+    """Time `cycles` cycles after a 3-cycle warm-up (compilation) in this process."""
+    import numba
+    import numpy as np
+
+    from fdeck.compile.problem import compile_deck
+    from fdeck.deck.model import Deck
+    from fdeck.engine import solver
+
+    numba.set_num_threads(threads)
+    d = Deck.model_validate(deck(form, mat, divisions, 3))
+    solver.run(compile_deck(d), solver.Sink())  # warm-up: compile or load the cache
+    problem = compile_deck(Deck.model_validate(deck(form, mat, divisions, cycles)))
+    t0 = time.perf_counter()
+    res = solver.run(problem, solver.Sink())
+    wall = time.perf_counter() - t0
+    n = problem.n_element
+    elements = sum(v for k, v in res.timings.items() if k.startswith("section"))
+    mem = sum(a.nbytes for g in problem.groups for a in vars(g).values()
+              if isinstance(a, np.ndarray) and a.base is None)
+    mem += 12 * 8 * problem.n_node * 3  # engine's nodal arrays (x, v, forces, ...) ~ 12 (n_node, 3) arrays
+    return {"formulation": form, "material": mat, "elements": n, "threads": threads, "cycles": res.cycles,
+            "us_per_element_cycle": 1e6 * wall / (res.cycles * n),
+            "us_per_element_cycle_elements_only": 1e6 * elements / (res.cycles * n),
+            "bytes_per_element": mem / n, "status": res.status}
+
+
+def compile_times() -> dict:
+    """Cold numba compile (empty cache dir) and cached start-up of `fdeck run` on the cantilever deck."""
+    out = {}
+    with tempfile.TemporaryDirectory() as cache, tempfile.TemporaryDirectory() as res:
+        env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+        cmd = [sys.executable, "-m", "fdeck.cli", "run", str(ROOT / "decks" / "wave_bar.yaml"), "-o", res]
+        for label in ("cold_run_s", "cached_run_s"):
+            t0 = time.perf_counter()
+            subprocess.run(cmd, env=env, capture_output=True, check=False)
+            out[label] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        subprocess.run([sys.executable, "-m", "fdeck.cli", "validate", str(ROOT / "decks" / "wave_bar.yaml")],
+                       env=env, capture_output=True, check=False)
+        out["cached_validate_s"] = time.perf_counter() - t0
+    out["compile_time_s"] = out["cold_run_s"] - out["cached_run_s"]
+    return out
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--one", nargs=5, help=argparse.SUPPRESS)  # form mat nx,ny,nz cycles threads (subprocess)
+    args = ap.parse_args()
+    if args.one:
+        form, mat, div, cycles, threads = args.one
+        print(json.dumps(measure(form, mat, tuple(map(int, div.split(","))), int(cycles), int(threads))))
+        return
+    sizes = [((50, 50, 4), 200)] + ([] if args.quick else [((160, 160, 4), 40)])  # 10 000 and 102 400 elements
+    rows = []
+    for div, cycles in sizes:
+        for form, mat in CASES:
+            for threads in (1, 2):
+                # a fresh process per measurement: no cross-talk of caches or thread pools
+                r = subprocess.run([sys.executable, __file__, "--one", form, mat, ",".join(map(str, div)),
+                                    str(cycles), str(threads)], capture_output=True, text=True, cwd=ROOT)
+                if r.returncode:
+                    print(r.stderr, file=sys.stderr)
+                    continue
+                row = json.loads(r.stdout.strip().splitlines()[-1])
+                rows.append(row)
+                print(f"{form:8s} {mat:22s} {row['elements']:7d} el  {threads} thr  "
+                      f"{row['us_per_element_cycle']:.3f} us/el-cycle  ({row['us_per_element_cycle_elements_only']:.3f}"
+                      f" in elements)  {row['bytes_per_element']:.0f} B/el", flush=True)
+    result = {"machine": {"cpu_count": os.cpu_count(), "platform": platform.platform(),
+                          "python": platform.python_version()},
+              "runs": rows, "startup": compile_times()}
+    print(json.dumps(result["startup"]))
+    (HERE / "results.json").write_text(json.dumps(result, indent=1) + "\n")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,34 @@
+"""Pass/fail checks a deck can require, evaluated on the run's history (rows at the history points)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def evaluate(checks, history: np.ndarray, columns: list[str], duration: float) -> list[dict]:
+    """-> [{name, value, limit, passed, what}] for every check the deck names. history (n_rows, n_cols)."""
+    col = {c: history[:, i] for i, c in enumerate(columns)} if len(history) else {}
+    out = []
+    if not len(history):
+        return out
+    ke, ie = col["kinetic_energy"], col["internal_energy"]
+    if checks.quasi_static is not None:
+        c = checks.quasi_static
+        late = col["time"] >= c.after * duration
+        ratio = np.where(ie[late] > 0, ke[late] / np.maximum(ie[late], 1e-300), np.inf)
+        value = float(ratio.max()) if late.any() else 0.0
+        out.append(dict(name="quasi_static", value=value, limit=c.max_ratio, passed=bool(value <= c.max_ratio),
+                        what=f"max kinetic/internal energy after {c.after:g} of the run"))
+    if checks.energy_balance is not None:
+        c = checks.energy_balance
+        scale = max(np.abs(ke).max(), np.abs(ie).max(), np.abs(col["external_work"]).max(),
+                    np.abs(col["damping_energy"]).max(), 1e-300)
+        value = float(np.abs(col["energy_balance_error"]).max() / scale)
+        out.append(dict(name="energy_balance", value=value, limit=c.max_error, passed=bool(value <= c.max_error),
+                        what="max |energy balance error| / largest energy"))
+    if checks.hourglass is not None:
+        c = checks.hourglass
+        value = float(col["hourglass_energy"][-1] / max(ie[-1], 1e-300))
+        out.append(dict(name="hourglass", value=value, limit=c.max_ratio, passed=bool(value <= c.max_ratio),
+                        what="hourglass / internal energy at the end"))
+    return out

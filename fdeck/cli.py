@@ -1,0 +1,202 @@
+"""The ``fdeck`` command: run, validate, info, schema, regress.
+
+User mistakes never print a traceback: they are reported as ``file:line:col: path: message`` and exit 2.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
+                  help="Explicit FE forming of dry textile reinforcements, driven by YAML decks.")
+
+
+def _err(msg: str) -> None:
+    typer.echo(msg, err=True)
+
+
+def _read(path: Path):
+    """-> (deck, locations) or exit 2 with every located problem."""
+    from fdeck.deck.errors import DeckError, format_problems
+    from fdeck.deck.read import read_deck
+
+    try:
+        deck, locs, warnings = read_deck(path)
+    except DeckError as exc:
+        _err(format_problems(exc.problems))
+        raise typer.Exit(2)
+    if warnings:
+        _err(format_problems(warnings))
+    return deck, locs
+
+
+def _compile_problems(exc, path: Path, locs):
+    from fdeck.deck.read import located
+
+    return [located(str(path), locs, p, m) for p, m in exc.problems]
+
+
+@app.command()
+def validate(decks: list[Path] = typer.Argument(..., help="Deck files.")):
+    """Check decks (schema, names, mesh sets, element geometry) and report every problem at once."""
+    from fdeck.compile.errors import CompileError
+    from fdeck.compile.problem import compile_deck
+    from fdeck.deck.errors import DeckError, format_problems
+    from fdeck.deck.read import read_deck
+
+    bad = False
+    for path in decks:
+        try:
+            deck, locs, warnings = read_deck(path)
+            if warnings:
+                _err(format_problems(warnings))
+            compile_deck(deck, path.parent)
+            typer.echo(f"{path}: ok")
+        except DeckError as exc:
+            _err(format_problems(exc.problems))
+            bad = True
+        except CompileError as exc:
+            _err(format_problems(_compile_problems(exc, path, locs)))
+            bad = True
+    raise typer.Exit(2 if bad else 0)
+
+
+def _progress_printer(total: float):
+    """Progress: a rich bar on a terminal, plain periodic lines otherwise (CI logs)."""
+    start = time.perf_counter()
+    if sys.stderr.isatty():
+        from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
+        bar = Progress(TextColumn("t = {task.fields[t]:.4g} s"), BarColumn(), TextColumn("{task.fields[rate]}"),
+                       TimeRemainingColumn(), transient=True)
+        task = bar.add_task("run", total=total, t=0.0, rate="")
+        bar.start()
+
+        def update(t, cycles, dt):
+            rate = cycles / max(time.perf_counter() - start, 1e-9)
+            bar.update(task, completed=t, t=t, rate=f"{rate:,.0f} cycles/s  dt {dt:.3g} s")
+
+        return update, bar.stop
+    last = [0.0]
+
+    def plain(t, cycles, dt):
+        now = time.perf_counter()
+        if now - last[0] >= 5.0:
+            last[0] = now
+            el = now - start
+            eta = el * (total - t) / t if t > 0 else float("nan")
+            _err(f"  t = {t:.4g} / {total:.4g} s ({100 * t / total:5.1f} %), {cycles} cycles, "
+                 f"{cycles / el:,.0f} cycles/s, dt {dt:.3g} s, ETA {eta:.0f} s")
+
+    return plain, lambda: None
+
+
+@app.command()
+def run(deck: Path = typer.Argument(..., help="Deck file."),
+        out: Optional[Path] = typer.Option(None, "-o", "--out", help="Result folder (default results/<deck name>/).")):
+    """Run a deck: frames (VTU/PVD, XDMF/HDF5), history.csv and summary.json in the result folder."""
+    from fdeck.compile.errors import CompileError
+    from fdeck.deck.errors import format_problems
+    from fdeck.run import execute, timing_table
+
+    d, locs = _read(deck)
+    out = out or Path("results") / deck.stem
+    progress, stop = _progress_printer(d.duration)
+    try:
+        code, summary = execute(d, deck.parent, out, deck.stem, str(deck), progress)
+    except CompileError as exc:
+        stop()
+        _err(format_problems(_compile_problems(exc, deck, locs)))
+        raise typer.Exit(2)
+    stop()
+    typer.echo(f"{deck}: {summary['status']} after {summary['cycles']} cycles, {summary['wall_time']:.2f} s wall, "
+               f"{summary['us_per_element_cycle']:.3f} us per element-cycle, "
+               f"{summary['elements']} elements, dt {summary['dt_min'] or 0:.3g}..{summary['dt_max'] or 0:.3g} s")
+    typer.echo("where the time went:\n" + timing_table(summary))
+    for c in summary["checks"]:
+        typer.echo(f"  check {c['name']:<15s} {c['value']:.4g} (limit {c['limit']:.4g}): "
+                   f"{'pass' if c['passed'] else 'FAIL'}")
+    typer.echo(f"results in {out}/")
+    if summary["status"] == "failed":
+        typer.echo(f"FAILED: {summary['message']}")
+    elif summary["status"] == "interrupted":
+        typer.echo(f"INTERRUPTED: {summary['message']}")
+    elif code == 3:
+        failed = [c["name"] for c in summary["checks"] if not c["passed"]]
+        typer.echo(f"CHECK FAILED: {', '.join(failed)}")
+    raise typer.Exit(code)
+
+
+@app.command()
+def info(deck: Path = typer.Argument(..., help="Deck file.")):
+    """What a deck will do: sizes, stable time step, cycles, memory, the effects that will run."""
+    from fdeck.compile.errors import CompileError
+    from fdeck.compile.problem import compile_deck
+    from fdeck.deck.errors import format_problems
+
+    d, locs = _read(deck)
+    try:
+        p = compile_deck(d, deck.parent)
+    except CompileError as exc:
+        _err(format_problems(_compile_problems(exc, deck, locs)))
+        raise typer.Exit(2)
+    typer.echo(f"{deck}: {d.title}")
+    typer.echo(f"  nodes {p.n_node}, elements {p.n_element}, duration {p.duration:.4g} s, units {d.units}")
+    cycles, mem = 0, 0
+    for plan in p.steps:
+        dts = []
+        for g, rho in zip(p.groups, plan.rho):
+            dts.append(plan.dt_safety * float(np.min(g.L0 / np.sqrt(g.modulus0 / rho))))
+        dt = min(dts)
+        cycles += int(np.ceil(plan.duration / dt))
+        typer.echo(f"  step {plan.name}: rest stable dt {dt:.4g} s, ~{int(np.ceil(plan.duration / dt))} cycles, "
+                   f"added mass {100 * plan.added_mass:.3g} %, damping alpha {plan.alpha:g} 1/s")
+    for g in p.groups:
+        mem += sum(a.nbytes for a in vars(g).values() if isinstance(a, np.ndarray) and a.base is None)
+        typer.echo(f"  group {g.name}: {len(g.conn)} {g.cell_type}, {g.formulation}, material {g.material.name}")
+    typer.echo(f"  effects: {', '.join(e.name for e in p.effects) or 'none'}")
+    typer.echo(f"  about {cycles} cycles in all (the step follows the current tangent, so it may differ); "
+               f"element arrays {mem / 2**20:.1f} MiB")
+
+
+@app.command()
+def schema(out: Path = typer.Option(Path("schemas"), "--out", help="Folder for deck.schema.json.")):
+    """Write the deck's JSON schema (for editors: yaml-language-server)."""
+    from fdeck.deck.schema import deck_schema
+
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "deck.schema.json").write_text(json.dumps(deck_schema(), indent=1, sort_keys=True) + "\n")
+    typer.echo(f"wrote {out / 'deck.schema.json'}")
+
+
+@app.command()
+def regress(cases: list[str] = typer.Argument(None, help="Case names (default: all)."),
+            update: bool = typer.Option(False, "--update", help="Rewrite the gold files from a fresh run."),
+            root: Path = typer.Option(Path("decks/regression"), help="Folder of regression cases.")):
+    """Run regression cases and compare with gold; --update rewrites gold (on purpose only)."""
+    from fdeck.regression import run_case
+
+    names = cases or sorted(p.name for p in root.iterdir() if (p / "spec.yaml").exists())
+    bad = 0
+    for name in names:
+        ok, report = run_case(root / name, update=update)
+        typer.echo(report)
+        bad += not ok
+    raise typer.Exit(1 if bad else 0)
+
+
+import numpy as np  # noqa: E402  (used by `info`; kept below the commands so --help stays fast to read)
+
+
+def main() -> None:
+    app()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,108 @@
+"""Meshes as arrays: the built-in block generator and meshio import, with named node and element sets."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from fdeck.compile.errors import CompileError
+
+# meshio cell type -> (fdeck cell type, node count); 8-node hexahedra are the only solid kind so far.
+SOLID_TYPES = {"hexahedron": 8}
+
+
+@dataclass
+class MeshArrays:
+    """X (n_node, 3) [mm]; cells: cell type -> connectivity (n_el, k), 0-based; node_sets: name -> node indices;
+    element_sets: name -> (cell type, element indices in that block); ids: cell type -> user ids (n_el,)."""
+
+    X: np.ndarray
+    cells: dict[str, np.ndarray]
+    node_sets: dict[str, np.ndarray] = field(default_factory=dict)
+    element_sets: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
+    ids: dict[str, np.ndarray] = field(default_factory=dict)
+
+
+def block(origin, size, divisions=None, element_size=None) -> MeshArrays:
+    """Structured hexahedra on [origin, origin + size]; face node sets xmin..zmax, sets `all`."""
+    if divisions is None:
+        divisions = [max(1, math.ceil(s / element_size - 1e-9)) for s in size]
+    nx, ny, nz = divisions
+    axes = [np.linspace(o, o + s, n + 1) for o, s, n in zip(origin, size, divisions)]
+    gx, gy, gz = np.meshgrid(*axes, indexing="ij")
+    X = np.stack([gx.ravel(), gy.ravel(), gz.ravel()], axis=1)
+    nid = np.arange(len(X)).reshape(nx + 1, ny + 1, nz + 1)
+    i, j, k = np.meshgrid(np.arange(nx), np.arange(ny), np.arange(nz), indexing="ij")
+    i, j, k = i.ravel(), j.ravel(), k.ravel()
+    conn = np.stack([nid[i, j, k], nid[i + 1, j, k], nid[i + 1, j + 1, k], nid[i, j + 1, k],
+                     nid[i, j, k + 1], nid[i + 1, j, k + 1], nid[i + 1, j + 1, k + 1], nid[i, j + 1, k + 1]], 1)
+    sets = {"all": np.arange(len(X))}
+    for a, name in enumerate("xyz"):
+        sets[f"{name}min"] = nid.take(0, axis=a).ravel()
+        sets[f"{name}max"] = nid.take(-1, axis=a).ravel()
+    m = MeshArrays(X, {"hexahedron": conn}, {k: np.sort(v) for k, v in sets.items()})
+    m.ids = {"hexahedron": np.arange(1, len(conn) + 1)}
+    m.element_sets["all"] = {"hexahedron": np.arange(len(conn))}
+    return m
+
+
+def read_file(path: Path) -> MeshArrays:
+    """Any mesh meshio reads; keeps its point sets and cell sets (Abaqus *NSET/*ELSET, Gmsh physical groups)."""
+    import meshio
+
+    try:
+        mesh = meshio.read(path)
+    except Exception as exc:  # meshio raises many types; all mean "cannot read this file"
+        raise CompileError([(("mesh", "file"), f"cannot read mesh file '{path}': {exc}")]) from None
+    X = np.zeros((len(mesh.points), 3))
+    X[:, : mesh.points.shape[1]] = mesh.points
+    cells, block_of = {}, []
+    for b, cb in enumerate(mesh.cells):
+        if cb.type in SOLID_TYPES:
+            cells.setdefault(cb.type, []).append(cb.data)
+            block_of.append((b, cb.type, sum(len(c) for c in cells[cb.type][:-1])))
+    if not cells:
+        kinds = sorted({cb.type for cb in mesh.cells})
+        raise CompileError([(("mesh", "file"), f"no supported elements in '{path}' (found {kinds}; "
+                                                 f"supported: {sorted(SOLID_TYPES)})")])
+    m = MeshArrays(X, {t: np.concatenate(c).astype(np.int64) for t, c in cells.items()})
+    m.ids = {t: np.arange(1, len(c) + 1) for t, c in m.cells.items()}
+    m.node_sets = {k: np.sort(np.asarray(v, np.int64).ravel()) for k, v in mesh.point_sets.items()}
+    m.node_sets["all"] = np.arange(len(X))
+    for name, per_block in mesh.cell_sets.items():
+        es = {}
+        for b, t, offset in block_of:
+            idx = np.asarray(per_block[b], np.int64).ravel() if b < len(per_block) and per_block[b] is not None else []
+            if len(idx):
+                es[t] = np.concatenate([es.get(t, np.zeros(0, np.int64)), offset + idx])
+        if es:
+            m.element_sets[name] = es
+    m.element_sets["all"] = {t: np.arange(len(c)) for t, c in m.cells.items()}
+    return m
+
+
+def add_box_sets(m: MeshArrays, node_boxes: dict, element_boxes: dict) -> None:
+    """Add sets of nodes (by position) and elements (by centroid) inside boxes; empty sets are errors."""
+    problems = []
+    for name, spec in node_boxes.items():
+        lo, hi = np.asarray(spec.box[0]) - spec.tolerance, np.asarray(spec.box[1]) + spec.tolerance
+        sel = np.nonzero(np.all((m.X >= lo) & (m.X <= hi), axis=1))[0]
+        if len(sel) == 0:
+            problems.append((("mesh", "node_sets", name), f"box {list(map(list, spec.box))} holds no node"))
+        m.node_sets[name] = sel
+    for name, spec in element_boxes.items():
+        lo, hi = np.asarray(spec.box[0]) - spec.tolerance, np.asarray(spec.box[1]) + spec.tolerance
+        es = {}
+        for t, conn in m.cells.items():
+            c = m.X[conn].mean(axis=1)
+            sel = np.nonzero(np.all((c >= lo) & (c <= hi), axis=1))[0]
+            if len(sel):
+                es[t] = sel
+        if not es:
+            problems.append((("mesh", "element_sets", name), f"box {list(map(list, spec.box))} holds no element"))
+        m.element_sets[name] = es
+    if problems:
+        raise CompileError(problems)

@@ -1,0 +1,228 @@
+"""Deck -> Problem: arrays, element groups (one per section), the effects the deck names, and the step plan."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from fdeck import registry
+from fdeck.compile import amplitude
+from fdeck.compile.errors import CompileError
+from fdeck.compile.mesh import MeshArrays, add_box_sets, block, read_file
+from fdeck.deck.model import Deck
+
+
+@dataclass
+class StepPlan:
+    """One step: its duration [s], dt safety, density per element of every group [t/mm^3], damping alpha [1/s]."""
+
+    name: str
+    duration: float
+    dt_safety: float
+    rho: list[np.ndarray]
+    alpha: float
+    max_cycles: int | None
+    added_mass: float  # fraction of the physical mass added by mass scaling
+
+
+@dataclass
+class Problem:
+    deck: Deck
+    X: np.ndarray  # (n_node, 3) reference coordinates [mm]
+    cells: dict[str, np.ndarray]  # cell type -> conn, for output
+    groups: list  # element groups (see physics.elements)
+    effects: list  # engine.effect.Effect instances, only those the deck names
+    node_sets: dict[str, np.ndarray]
+    physical_mass: np.ndarray  # (n_node,) lumped mass without mass scaling [t]
+    steps: list[StepPlan]
+    reactions: dict[str, np.ndarray] = field(default_factory=dict)
+    damping: object | None = None
+
+    @property
+    def n_node(self) -> int:
+        return len(self.X)
+
+    @property
+    def n_element(self) -> int:
+        return sum(len(g.conn) for g in self.groups)
+
+    @property
+    def duration(self) -> float:
+        return sum(s.duration for s in self.steps)
+
+
+def fibre_frame(orientation) -> np.ndarray:
+    """(3, 3) rows warp, weft, thickness from a deck Orientation."""
+    n = np.asarray(orientation.normal, float)
+    r = np.asarray(orientation.reference, float)
+    if np.linalg.norm(n) == 0:
+        raise ValueError("`normal` must not be zero")
+    n = n / np.linalg.norm(n)
+    r = r - (r @ n) * n
+    if np.linalg.norm(r) < 1e-9:
+        raise ValueError("`reference` is parallel to `normal`")
+    r /= np.linalg.norm(r)
+    a = math.radians(orientation.warp_angle)
+    warp = math.cos(a) * r + math.sin(a) * np.cross(n, r)
+    return np.array([warp, np.cross(n, warp), n])
+
+
+class Context:
+    """What an effect's ``build`` may ask for; failures are CompileErrors at ``self.path``."""
+
+    def __init__(self, deck: Deck, mesh: MeshArrays, physical_mass: np.ndarray):
+        self.deck, self.mesh, self.X, self.physical_mass = deck, mesh, mesh.X, physical_mass
+        self.path: tuple = ()
+
+    def node_set(self, name: str) -> np.ndarray:
+        if name not in self.mesh.node_sets:
+            raise CompileError([(self.path + ("nodes",), _missing("node set", name, self.mesh.node_sets))])
+        return self.mesh.node_sets[name]
+
+    def amplitude(self, name: str):
+        return amplitude.make(name, self.deck.amplitudes, self.deck.duration)
+
+
+def _missing(what: str, name: str, known) -> str:
+    import difflib
+
+    close = difflib.get_close_matches(name, list(known), n=1)
+    hint = f"did you mean '{close[0]}'?" if close else "known: " + ", ".join(sorted(known))
+    return f"unknown {what} '{name}' ({hint})"
+
+
+def load_mesh(deck: Deck, base: Path) -> MeshArrays:
+    m = deck.mesh
+    if m.block is not None:
+        mesh = block(m.block.origin, m.block.size, m.block.divisions, m.block.element_size)
+    else:
+        path = (base / m.file) if not Path(m.file).is_absolute() else Path(m.file)
+        if not path.exists():
+            raise CompileError([(("mesh", "file"), f"mesh file '{path}' does not exist")])
+        mesh = read_file(path)
+    add_box_sets(mesh, m.node_sets, m.element_sets)
+    return mesh
+
+
+def build_groups(deck: Deck, mesh: MeshArrays) -> list:
+    """One element group per section; every element must belong to exactly one section."""
+    problems, groups = [], []
+    owner = {t: np.full(len(c), -1) for t, c in mesh.cells.items()}
+    for i, sec in enumerate(deck.sections):
+        path = ("sections", i)
+        if sec.elements not in mesh.element_sets:
+            problems.append((path + ("elements",), _missing("element set", sec.elements, mesh.element_sets)))
+            continue
+        kind = registry.MATERIALS[deck.materials[sec.material].type]
+        card = deck.materials[sec.material]
+        try:
+            frame = fibre_frame(sec.orientation)
+        except ValueError as exc:
+            problems.append((path + ("orientation",), str(exc)))
+            continue
+        for ctype, idx in mesh.element_sets[sec.elements].items():
+            twice = idx[owner[ctype][idx] >= 0]
+            if len(twice):
+                problems.append((path + ("elements",), f"elements already in section "
+                                 f"{int(owner[ctype][twice[0]])}: ids {mesh.ids[ctype][twice[:10]].tolist()}"))
+                continue
+            owner[ctype][idx] = i
+            conn, ids = mesh.cells[ctype][idx], mesh.ids[ctype][idx]
+            params = np.broadcast_to(kind.pack(card), (len(idx), len(kind.pack(card))))
+            frames = np.ascontiguousarray(np.broadcast_to(frame, (len(idx), 3, 3)))
+            rho = np.full(len(idx), card.density)
+            hourglass = sec.hourglass
+            if sec.formulation == "reduced" and hourglass is None:
+                from fdeck.deck.model import Hourglass
+                hourglass = Hourglass()
+            g = registry.FORMULATIONS[sec.formulation].build(
+                f"section{i}:{sec.elements}", sec.formulation, mesh.X, conn, ids, kind, params, frames, rho, hourglass)
+            bad = g.detJ_min <= 0
+            if bad.any():
+                problems.append((path + ("elements",), f"{int(bad.sum())} inverted or degenerate elements, "
+                                 f"ids {ids[bad][:10].tolist()}"))
+            g.element_index, g.section_index = idx, i
+            groups.append(g)
+    for ctype, own in owner.items():
+        if (own < 0).any():
+            problems.append((("sections",), f"{int((own < 0).sum())} {ctype} elements have no section, ids "
+                             f"{mesh.ids[ctype][own < 0][:10].tolist()}"))
+    if problems:
+        raise CompileError(problems)
+    return groups
+
+
+def nodal_mass(groups: list, n_node: int, rho: list[np.ndarray] | None = None) -> np.ndarray:
+    """Lumped nodal mass (n_node,) [t] from the groups' densities (or the given ones)."""
+    m = np.zeros(n_node)
+    for i, g in enumerate(groups):
+        saved = g.rho
+        if rho is not None:
+            g.rho = rho[i]
+        np.add.at(m, g.conn.ravel(), g.mass().ravel())
+        g.rho = saved
+    return m
+
+
+def plan_steps(deck: Deck, groups: list, physical_mass: np.ndarray) -> list[StepPlan]:
+    total = physical_mass.sum()
+    plans = []
+    for s in deck.steps:
+        rho = [g.rho.copy() for g in groups]
+        ms = s.mass_scaling
+        if ms is not None and ms.factor is not None:
+            rho = [r * ms.factor for r in rho]
+        elif ms is not None:
+            for i, g in enumerate(groups):
+                dt0 = g.L0 / np.sqrt(g.modulus0 / g.rho)  # rest stable step per element
+                rho[i] = g.rho * np.maximum(1.0, (ms.target_dt / (s.dt_safety * dt0)) ** 2)
+        added = (nodal_mass(groups, len(physical_mass), rho).sum() - total) / total
+        alpha = s.damping.mass_proportional if s.damping else 0.0
+        plans.append(StepPlan(s.name, s.duration, s.dt_safety, rho, alpha, s.max_cycles, float(added)))
+    return plans
+
+
+def compile_deck(deck: Deck, base: Path = Path(".")) -> Problem:
+    """Build every array the engine needs. Raises CompileError listing every geometric or set problem."""
+    from fdeck.physics.effects.damping import MassDamping
+
+    mesh = load_mesh(deck, base)
+    groups = build_groups(deck, mesh)
+    mass = nodal_mass(groups, len(mesh.X))
+    ctx = Context(deck, mesh, mass)
+    effects, problems = [], []
+    for i, sec in enumerate(deck.sections):  # section add-ons act on that section's groups
+        for j, card in enumerate(getattr(sec, "effects", [])):
+            ctx.path = ("sections", i, "effects", j)
+            for g in groups:
+                if g.section_index == i:
+                    ctx.group = g
+                    try:
+                        effects.append(registry.EFFECTS[card.type].build(card, ctx))
+                    except CompileError as exc:
+                        problems += exc.problems
+    for section in ("boundary", "loads"):
+        for i, card in enumerate(getattr(deck, section)):
+            ctx.path = (section, i)
+            try:
+                effects.append(registry.EFFECTS[card.type].build(card, ctx))
+            except CompileError as exc:
+                problems += exc.problems
+    reactions = {}
+    for i, name in enumerate(deck.output.reactions):
+        ctx.path = ("output", "reactions", i)
+        try:
+            reactions[name] = ctx.node_set(name)
+        except CompileError as exc:
+            problems += [(("output", "reactions", i), m) for _, m in exc.problems]
+    if problems:
+        raise CompileError(problems)
+    steps = plan_steps(deck, groups, mass)
+    damping = None
+    if any(s.alpha > 0 for s in steps):  # built only when a step asks for it
+        damping = MassDamping(mass.copy())
+        effects.append(damping)
+    return Problem(deck, mesh.X, mesh.cells, groups, effects, mesh.node_sets, mass, steps, reactions, damping)

@@ -1,0 +1,254 @@
+"""The deck: every section of a YAML input as a frozen pydantic model.
+
+Material, boundary and load cards come from the registry (``fdeck.registry``), so a new card is a new module, not an
+edit here. Values are canonical after validation (SI-consistent numbers in the declared unit system, defaults
+filled in); cross references by name are checked in ``Deck``'s validator, mesh set names in the compiler.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal, Union
+
+from pydantic import Field, model_validator
+
+from fdeck import registry
+from fdeck.deck.base import Card
+
+registry.load_plugins()
+
+Vector = tuple[float, float, float]
+PositiveInt = Annotated[int, Field(ge=1)]
+
+
+def _union(section: str | None, table: dict):
+    cards = tuple(k.card for k in table.values() if section is None or k.section == section)
+    if len(cards) == 1:
+        return cards[0]
+    return Annotated[Union[cards], Field(discriminator="type")]
+
+
+MaterialCardU = _union(None, registry.MATERIALS)
+BoundaryCard = _union("boundary", registry.EFFECTS)
+LoadCard = _union("loads", registry.EFFECTS)
+_section_effects = [k for k in registry.EFFECTS.values() if k.section == "section"]
+SectionEffectCard = _union("section", registry.EFFECTS) if _section_effects else None
+Formulation = Literal[tuple(registry.FORMULATIONS)]  # type: ignore[valid-type]
+
+
+# -- mesh -------------------------------------------------------------------------------------------
+class Block(Card):
+    """Structured block of hexahedra. Node sets xmin, xmax, ymin, ymax, zmin, zmax (faces) and `all` are made."""
+
+    origin: Vector = Field((0.0, 0.0, 0.0), description="Corner with the smallest coordinates [mm].")
+    size: Vector = Field(description="Edge lengths along x, y, z [mm].")
+    divisions: tuple[PositiveInt, PositiveInt, PositiveInt] | None = Field(
+        None, description="Elements along x, y, z. Give this or `element_size`.")
+    element_size: float | None = Field(None, gt=0, description="Target edge length [mm]; divisions = ceil(size/h).")
+
+    @model_validator(mode="after")
+    def _one_of(self):
+        if (self.divisions is None) == (self.element_size is None):
+            raise ValueError("give exactly one of `divisions` or `element_size`")
+        if min(self.size) <= 0:
+            raise ValueError(f"every edge length must be > 0, got {list(self.size)}")
+        return self
+
+
+class BoxSet(Card):
+    """Entities inside an axis-aligned box (nodes by position, elements by centroid), bounds inclusive [mm]."""
+
+    box: tuple[Vector, Vector] = Field(description="[[xmin, ymin, zmin], [xmax, ymax, zmax]] [mm].")
+    tolerance: float = Field(1e-6, ge=0, description="Added to every side of the box [mm].")
+
+
+class Mesh(Card):
+    """Either a built-in block or a mesh file read by meshio (Abaqus .inp, Gmsh .msh, ...), plus extra sets."""
+
+    block: Block | None = None
+    file: str | None = Field(None, description="Mesh file, relative to the deck's folder; its sets are kept.")
+    node_sets: dict[str, BoxSet] = Field(default_factory=dict, description="Extra node sets by box.")
+    element_sets: dict[str, BoxSet] = Field(default_factory=dict, description="Extra element sets by box.")
+
+    @model_validator(mode="after")
+    def _one_of(self):
+        if (self.block is None) == (self.file is None):
+            raise ValueError("give exactly one of `block` or `file`")
+        return self
+
+
+# -- sections -----------------------------------------------------------------------------------------
+class Orientation(Card):
+    """Fibre frame of a section: warp lies in the plane normal to `normal`, at `warp_angle` (right-handed about
+    `normal`) from the projection of `reference` on that plane; weft = normal x warp (at +90 deg); thickness =
+    normal. A +-45 deg blank is `warp_angle: 45`."""
+
+    warp_angle: float = Field(0.0, description="Angle of the warp from the reference direction [deg].")
+    normal: Vector = Field((0.0, 0.0, 1.0), description="Sheet normal (thickness direction).")
+    reference: Vector = Field((1.0, 0.0, 0.0), description="Direction of warp at angle 0 (projected).")
+
+
+class Hourglass(Card):
+    """Flanagan-Belytschko hourglass control of `reduced` hexahedra."""
+
+    type: Literal["stiffness", "viscous"] = "stiffness"
+    coefficient: float = Field(0.05, gt=0, le=1.0, description="Dimensionless coefficient (stiffness: k = c M V "
+                               "sum|b|^2/8 with M the rest wave modulus; viscous: c rho c0 V^(2/3)/4).")
+
+
+class Section(Card):
+    """Assigns a material and an element formulation to an element set."""
+
+    elements: str = Field("all", description="Element set name.")
+    material: str = Field(description="Name of a card in `materials`.")
+    formulation: Formulation = Field("fbar", description="Element formulation: "  # type: ignore[valid-type]
+                                     + "; ".join(f"{k}: {v.description}" for k, v in registry.FORMULATIONS.items()))
+    hourglass: Hourglass | None = Field(None, description="Hourglass control (reduced only; default stiffness 0.05).")
+    orientation: Orientation = Field(default_factory=Orientation)
+    if SectionEffectCard is not None:
+        effects: list[SectionEffectCard] = Field(  # type: ignore[valid-type]
+            default_factory=list, description="Add-ons computed on this section's elements (e.g. fibre_bending).")
+
+    @model_validator(mode="after")
+    def _hourglass_only_reduced(self):
+        if self.hourglass is not None and self.formulation != "reduced":
+            raise ValueError("`hourglass` applies to formulation `reduced` only")
+        return self
+
+
+# -- amplitudes ------------------------------------------------------------------------------------------
+class Tabular(Card):
+    """Piecewise-linear amplitude through (time [s], value) points, constant beyond the ends."""
+
+    type: Literal["tabular"]
+    points: list[tuple[float, float]] = Field(min_length=2)
+
+    @model_validator(mode="after")
+    def _increasing(self):
+        ts = [p[0] for p in self.points]
+        if any(b <= a for a, b in zip(ts, ts[1:])):
+            raise ValueError("times in `points` must increase strictly")
+        return self
+
+
+class SmoothStep(Card):
+    """Quintic smooth step from a0 at t0 to a1 at t1 (zero velocity and acceleration at both ends)."""
+
+    type: Literal["smooth_step"]
+    t0: float = Field(0.0, ge=0)
+    t1: float = Field(gt=0)
+    a0: float = 0.0
+    a1: float = 1.0
+
+    @model_validator(mode="after")
+    def _order(self):
+        if self.t1 <= self.t0:
+            raise ValueError("t1 must be greater than t0")
+        return self
+
+
+Amplitude = Annotated[Union[Tabular, SmoothStep], Field(discriminator="type")]
+BUILTIN_AMPLITUDES = ("constant", "ramp", "smooth")
+
+
+# -- steps, output, checks ----------------------------------------------------------------------------------
+class MassScaling(Card):
+    """Mass scaling: a fixed density factor, or per-element added mass to reach a target time step."""
+
+    factor: float | None = Field(None, ge=1.0, description="Density multiplier (dt grows by sqrt(factor)).")
+    target_dt: float | None = Field(None, gt=0, description="Target stable time step [s]; mass is added to "
+                                    "elements whose rest stable step is smaller, and the added mass is reported.")
+
+    @model_validator(mode="after")
+    def _one_of(self):
+        if (self.factor is None) == (self.target_dt is None):
+            raise ValueError("give exactly one of `factor` or `target_dt`")
+        return self
+
+
+class Damping(Card):
+    mass_proportional: float = Field(ge=0, description="alpha in f = -alpha m v [1/s]; 2 w damps a mode of "
+                                     "angular frequency w critically.")
+
+
+class Step(Card):
+    name: str = "step"
+    duration: float = Field(gt=0, description="Step duration [s].")
+    dt_safety: float = Field(0.9, gt=0, le=1.0, description="Time step = dt_safety x smallest element step.")
+    mass_scaling: MassScaling | None = None
+    damping: Damping | None = None
+    max_cycles: int | None = Field(None, ge=1, description="Stop the step after this many cycles (a guard).")
+
+
+class Output(Card):
+    frames: int = Field(20, ge=1, description="Frames written, evenly spaced over the run (plus the initial one).")
+    formats: list[Literal["vtu", "xdmf"]] = Field(["vtu"], min_length=1)
+    history_points: int = Field(1000, ge=2, description="History rows, evenly spaced over the run.")
+    reactions: list[str] = Field(default_factory=list, description="Node sets whose reaction forces are recorded.")
+
+
+class QuasiStatic(Card):
+    max_ratio: float = Field(0.05, gt=0, description="Limit of kinetic / internal energy.")
+    after: float = Field(0.1, ge=0, lt=1, description="Checked after this fraction of the run.")
+
+
+class EnergyBalance(Card):
+    max_error: float = Field(0.01, gt=0, description="Limit of |balance error| / largest energy.")
+
+
+class HourglassCheck(Card):
+    max_ratio: float = Field(0.05, gt=0, description="Limit of hourglass / internal energy at the end.")
+
+
+class Checks(Card):
+    quasi_static: QuasiStatic | None = None
+    energy_balance: EnergyBalance | None = None
+    hourglass: HourglassCheck | None = None
+
+
+# -- the deck -----------------------------------------------------------------------------------------------
+class Deck(Card):
+    """A complete fdeck input."""
+
+    title: str = ""
+    units: Literal["mm-t-s-N-MPa", "m-kg-s-N-Pa"] = Field(
+        "mm-t-s-N-MPa", description="Consistent unit system of every number in the deck (no conversion is done).")
+    mesh: Mesh
+    materials: dict[str, MaterialCardU] = Field(min_length=1)  # type: ignore[valid-type]
+    sections: list[Section] = Field(min_length=1)
+    amplitudes: dict[str, Amplitude] = Field(default_factory=dict)
+    boundary: list[BoundaryCard] = Field(default_factory=list)  # type: ignore[valid-type]
+    loads: list[LoadCard] = Field(default_factory=list)  # type: ignore[valid-type]
+    steps: list[Step] = Field(min_length=1)
+    output: Output = Field(default_factory=Output)
+    checks: Checks = Field(default_factory=Checks)
+
+    @property
+    def duration(self) -> float:
+        return sum(s.duration for s in self.steps)
+
+
+def cross_reference_problems(deck: Deck) -> list[tuple[tuple, str, str]]:
+    """Name references the schema cannot see: [(path, message, severity)]."""
+    out = []
+    for i, s in enumerate(deck.sections):
+        if s.material not in deck.materials:
+            out.append((("sections", i, "material"), _unknown("material", s.material, deck.materials), "error"))
+    names = set(BUILTIN_AMPLITUDES) | set(deck.amplitudes)
+    for group in ("boundary", "loads"):
+        for i, c in enumerate(getattr(deck, group)):
+            amp = getattr(c, "amplitude", None)
+            if amp is not None and amp not in names:
+                out.append(((group, i, "amplitude"), _unknown("amplitude", amp, names), "error"))
+    used = {s.material for s in deck.sections}
+    for name in deck.materials:
+        if name not in used:
+            out.append((("materials", name), f"material '{name}' is not used by any section", "warning"))
+    return out
+
+
+def _unknown(what, name, known) -> str:
+    import difflib
+
+    close = difflib.get_close_matches(name, list(known), n=1)
+    hint = f" (did you mean '{close[0]}'?)" if close else f" (known: {', '.join(sorted(known)) or 'none'})"
+    return f"unknown {what} '{name}'{hint}"

@@ -1,0 +1,1 @@
+"""Engine stage: the explicit time loop on plain arrays. Never imports pydantic or yaml."""

@@ -1,0 +1,37 @@
+"""Deterministic scatter of per-element nodal vectors into nodes (no atomics, any thread count)."""
+
+import numpy as np
+
+from fdeck.jit import njit_parallel, prange
+
+
+def node_slots(conn: np.ndarray, n_node: int) -> tuple[np.ndarray, np.ndarray]:
+    """CSR map node -> flat slots e * k + a of conn (n_el, k), in increasing slot order.
+
+    Returns ptr (n_node + 1,) and slots (n_el * k,) int64.
+    """
+    flat = conn.ravel()
+    order = np.argsort(flat, kind="stable")
+    counts = np.bincount(flat, minlength=n_node)
+    ptr = np.zeros(n_node + 1, np.int64)
+    np.cumsum(counts, out=ptr[1:])
+    return ptr, order.astype(np.int64)
+
+
+@njit_parallel
+def gather_add(fe, ptr, slots, f):
+    """f (n_node, 3) += sum of fe (n_el, k, 3) over the slots of each node, in a fixed order."""
+    k = fe.shape[1]
+    for n in prange(f.shape[0]):
+        s0 = 0.0
+        s1 = 0.0
+        s2 = 0.0
+        for i in range(ptr[n], ptr[n + 1]):
+            e = slots[i] // k
+            a = slots[i] - e * k
+            s0 += fe[e, a, 0]
+            s1 += fe[e, a, 1]
+            s2 += fe[e, a, 2]
+        f[n, 0] += s0
+        f[n, 1] += s1
+        f[n, 2] += s2

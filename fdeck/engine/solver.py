@@ -1,0 +1,235 @@
+"""Central-difference explicit integration with lumped mass, energy ledger and monitors.
+
+Per cycle n (Belytschko, Liu & Moran, Nonlinear FE for Continua and Structures, 2000, box 6.1):
+    v(n+1/2) = v(n-1/2) + dt_avg a(n)          then prescribed velocities are imposed (reactions R = m dv / dt_avg)
+    x(n+1)   = x(n) + dt v(n+1/2)
+    forces at x(n+1) -> a(n+1); stable step from the groups' current wave moduli.
+Ledger at t(n): kinetic energy from v(n) = (v(n-1/2) + v(n+1/2)) / 2; internal energy is the STORED energy
+(hyperelastic strain energy + hourglass springs + other internal effects), not the integrated internal work, so
+the balance error KE + IE + dissipated - external work exposes forces inconsistent with energies or instability;
+external work (loads and reactions) and damping dissipation are integrated with the trapezoidal rule.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numba
+import numpy as np
+
+from fdeck.engine.integrate import drift, kick
+
+
+class RunStopped(Exception):
+    """Numerical failure: ``cause`` says what, ``element`` which element (user id) or None."""
+
+    def __init__(self, cause: str, t: float, element: int | None = None):
+        self.cause, self.t, self.element = cause, t, element
+        where = f" in element {element}" if element is not None else ""
+        super().__init__(f"{cause}{where} at t = {t:.6g} s")
+
+
+@dataclass
+class Result:
+    status: str = "running"  # completed | failed | interrupted
+    message: str = ""
+    cycles: int = 0
+    t: float = 0.0
+    wall: float = 0.0
+    dt_min: float = math.inf
+    dt_max: float = 0.0
+    timings: dict[str, float] = field(default_factory=dict)
+    history: list[list[float]] = field(default_factory=list)
+    columns: list[str] = field(default_factory=list)
+    added_mass: list[float] = field(default_factory=list)
+
+
+class Sink:
+    """Where the engine sends results (implemented by fdeck.run with fdeck.io)."""
+
+    def frame(self, t: float, x: np.ndarray, v: np.ndarray) -> None: ...
+
+    def history(self, row: list[float]) -> None: ...
+
+    def progress(self, t: float, cycles: int, dt: float) -> None: ...
+
+
+def history_columns(problem) -> list[str]:
+    cols = ["time", "dt", "kinetic_energy", "internal_energy", "strain_energy", "hourglass_energy",
+            "damping_energy", "external_work", "energy_balance_error"]
+    for name in problem.reactions:
+        cols += [f"reaction_{name}_{c}" for c in "xyz"]
+    return cols
+
+
+class _Timer:
+    def __init__(self):
+        self.acc: dict[str, float] = {}
+
+    def add(self, name: str, t0: float) -> float:
+        t1 = time.perf_counter()
+        self.acc[name] = self.acc.get(name, 0.0) + t1 - t0
+        return t1
+
+
+# Below this many elements a cycle's work is shorter than waking a second thread (about 10 us per parallel
+# kernel launch with OpenMP on this class of machine, 8 launches per cycle): run such problems on one thread.
+SERIAL_BELOW = 2000
+
+
+def run(problem, sink: Sink, should_stop=lambda: False) -> Result:
+    """Run every step of ``problem``; never raises for numerical failure (status 'failed' with a message)."""
+    threads = numba.get_num_threads()
+    if problem.n_element < SERIAL_BELOW:
+        numba.set_num_threads(1)
+    try:
+        return _run(problem, sink, should_stop)
+    finally:
+        numba.set_num_threads(threads)
+
+
+def _run(problem, sink: Sink, should_stop) -> Result:
+    res = Result(columns=history_columns(problem))
+    groups, effects = problem.groups, problem.effects
+    forcing = [e for e in effects if e.ledger is not None]
+    constraints = [e for e in effects if e.constrains]
+    X = problem.X
+    n = len(X)
+    x, v = X.copy(), np.zeros((n, 3))
+    f_int, f_ext, f_damp = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
+    fe_prev = np.zeros((n, 3))  # external + reaction force at the previous cycle
+    fd_prev = np.zeros((n, 3))  # damping force at the previous cycle
+    dx = np.zeros((n, 3))  # last position increment
+    v_old, reaction = np.zeros((n, 3)), np.zeros((n, 3))
+    timer = _Timer()
+    T = problem.duration
+    frame_times = np.linspace(0.0, T, problem.deck.output.frames + 1)
+    hist_times = np.linspace(0.0, T, problem.deck.output.history_points)
+    next_frame, next_hist = 0, 0
+    w_ext = d_damp = d_hg = 0.0
+    energy0 = None
+    t = 0.0
+    wall0 = time.perf_counter()
+    last_progress = wall0
+
+    def forces(t, x, v):
+        """Fill f_int, f_ext, f_damp at (t, x, v); returns (stored internal, hourglass stored, hourglass power)."""
+        f_int.fill(0.0)
+        f_ext.fill(0.0)
+        f_damp.fill(0.0)
+        se = hg = p_hg = 0.0
+        t0 = time.perf_counter()
+        for g in groups:
+            g.update(x, v)
+            g.add_forces(f_int)
+            se += g.strain_energy()
+            h, p = g.hourglass_energy()
+            hg += h
+            p_hg += p
+            t0 = timer.add(g.name, t0)
+        internal = se + hg
+        for e in forcing:
+            target = f_int if e.ledger == "internal" else f_ext if e.ledger == "external" else f_damp
+            e.add_force(t, x, v, target)
+            if e.ledger == "internal":
+                internal += e.energy()
+            t0 = timer.add(e.name, t0)
+        return internal, se, hg, p_hg
+
+    def check(t):
+        for g in groups:
+            jmin, el = g.worst_jacobian()
+            if not jmin > 0.0:  # also catches nan
+                cause = "element inverted (det F <= 0)" if jmin <= 0.0 else "non-finite deformation (NaN)"
+                raise RunStopped(cause, t, el)
+
+    def stable_dt(safety):
+        return safety * min([g.stable_dt() for g in groups] + [e.stable_dt() for e in forcing])
+
+    try:
+        internal, se, hg, p_hg = forces(0.0, x, v)
+        check(0.0)
+        dt_prev = 0.0
+        t_step_end = 0.0
+        for plan in problem.steps:
+            t_step_end += plan.duration
+            for g, rho in zip(groups, plan.rho):
+                g.rho = rho
+            from fdeck.compile.problem import nodal_mass  # plain numpy helper, no deck types
+
+            m = nodal_mass(groups, n)
+            inv_m = 1.0 / m
+            if problem.damping is not None:
+                problem.damping.mass[:] = m
+                problem.damping.alpha = plan.alpha
+            res.added_mass.append(plan.added_mass)
+            dt_next = stable_dt(plan.dt_safety)
+            step_cycles = 0
+            while t < t_step_end * (1 - 1e-12):
+                if should_stop():
+                    res.status, res.message = "interrupted", f"stopped by signal at t = {t:.6g} s"
+                    break
+                if plan.max_cycles is not None and step_cycles >= plan.max_cycles:
+                    res.message = f"step '{plan.name}' reached max_cycles = {plan.max_cycles}"
+                    break
+                t0 = time.perf_counter()
+                dt = min(dt_next, t_step_end - t)
+                if not dt > 0.0 or not math.isfinite(dt):
+                    raise RunStopped(f"stable time step is {dt:.3g} s", t)
+                dt_avg = 0.5 * (dt_prev + dt) if dt_prev > 0 else 0.5 * dt
+                kick(v, v_old, inv_m, f_ext, f_int, f_damp, dt_avg)
+                for c in constraints:
+                    c.constrain(t + dt, dt, x, v)
+                # ledger at t_n (kinetic energy needs v(n+1/2)), then positions move to t_(n+1)
+                w, dd, ke = drift(x, v, v_old, m, f_ext, f_int, f_damp, fe_prev, fd_prev, dx, reaction, dt, dt_avg,
+                                  res.cycles == 0)
+                w_ext += w
+                d_damp += dd
+                d_hg += p_hg * dt_avg
+                if energy0 is None:
+                    energy0 = ke + internal
+                err = ke + internal + d_damp + d_hg - w_ext - energy0
+                if not math.isfinite(ke + internal):
+                    raise RunStopped("non-finite energy (NaN or overflow in forces)", t)
+                if next_hist < len(hist_times) and t >= hist_times[next_hist] - 1e-12 * T:
+                    row = [t, dt, ke, internal, se, hg + d_hg, d_damp, w_ext, err]
+                    for nodes in problem.reactions.values():
+                        row += reaction[nodes].sum(axis=0).tolist()
+                    res.history.append(row)
+                    sink.history(row)
+                    while next_hist < len(hist_times) and hist_times[next_hist] <= t + 1e-12 * T:
+                        next_hist += 1
+                t += dt
+                dt_prev = dt
+                res.cycles += 1
+                step_cycles += 1
+                res.dt_min, res.dt_max = min(res.dt_min, dt), max(res.dt_max, dt)
+                t0 = timer.add("integrator", t0)
+                internal, se, hg, p_hg = forces(t, x, v)
+                t0 = time.perf_counter()
+                check(t)
+                dt_next = stable_dt(plan.dt_safety)
+                t0 = timer.add("stable step and monitors", t0)
+                if next_frame < len(frame_times) and t >= frame_times[next_frame] - 1e-12 * T:
+                    sink.frame(t, x, v)
+                    while next_frame < len(frame_times) and frame_times[next_frame] <= t + 1e-12 * T:
+                        next_frame += 1
+                    t0 = timer.add("output", t0)
+                now = time.perf_counter()
+                if now - last_progress > 0.5:
+                    sink.progress(t, res.cycles, dt)
+                    last_progress = now
+            if res.status == "interrupted" or res.message:
+                break
+        if res.status == "running":
+            res.status = "completed"
+    except RunStopped as exc:
+        res.status, res.message = "failed", str(exc)
+    res.t = t
+    res.wall = time.perf_counter() - wall0
+    res.timings = timer.acc
+    res.final_positions = x  # the frame writer of an interrupted or failed run writes these
+    res.final_velocities = v
+    return res

@@ -1,0 +1,350 @@
+"""Eight-node hexahedron, total-Lagrangian, in three formulations.
+
+* ``full``: 2x2x2 Gauss integration of the material law.
+* ``fbar``: F-bar / mean dilatation (de Souza Neto et al. 1996): at every point F_bar = (J_bar/J)^(1/3) F with
+  J_bar the volume average of det F; the internal force is the exact derivative of sum_q w_q psi(F_bar_q), see
+  ``forces_fbar``. Passes the patch test; removes volumetric locking.
+* ``reduced``: one point with the Flanagan-Belytschko (1981) uniform gradient b_a = (1/V0) int dN_a/dX dV, plus
+  hourglass control on the four modes gamma_alpha = h_alpha - (h_alpha . X_j) b_j. In the total-Lagrangian form
+  used here the hourglass "strain" q_alpha = sum_a x_a gamma_a,alpha vanishes for every affine motion (gamma is
+  orthogonal to 1 and to X), so the stiffness energy 1/2 k |q|^2 is exactly objective and conservative.
+
+Node order is VTK/Abaqus C3D8: 0-3 the bottom face counter-clockwise, 4-7 above them. All shape-function
+gradients are taken once in the reference configuration (``prepare``); per cycle only F = x . grad0 N changes.
+Units: x [mm], forces [N], stresses [MPa], volumes [mm^3].
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from fdeck.jit import njit, njit_parallel, prange
+from fdeck.physics.tensor import det3
+from fdeck.registry import FormulationKind, register_formulation
+
+# Reference node signs (xi, eta, zeta) in VTK order.
+NODE_SIGNS = np.array(
+    [[-1, -1, -1], [1, -1, -1], [1, 1, -1], [-1, 1, -1], [-1, -1, 1], [1, -1, 1], [1, 1, 1], [-1, 1, 1]], float
+)
+GAUSS_2 = NODE_SIGNS / math.sqrt(3.0)  # 2x2x2 points, unit weights
+# Hourglass base vectors h_alpha (4, 8): xi*eta, eta*zeta, zeta*xi, xi*eta*zeta at the nodes.
+HOURGLASS_BASE = np.array([
+    NODE_SIGNS[:, 0] * NODE_SIGNS[:, 1],
+    NODE_SIGNS[:, 1] * NODE_SIGNS[:, 2],
+    NODE_SIGNS[:, 2] * NODE_SIGNS[:, 0],
+    NODE_SIGNS[:, 0] * NODE_SIGNS[:, 1] * NODE_SIGNS[:, 2],
+])
+FACES = np.array([[0, 3, 2, 1], [4, 5, 6, 7], [0, 1, 5, 4], [1, 2, 6, 5], [2, 3, 7, 6], [3, 0, 4, 7]])
+
+
+def shape_gradients_local(points: np.ndarray) -> np.ndarray:
+    """dN_a/dxi at natural points (n_p, 3) -> (n_p, 8, 3)."""
+    s = NODE_SIGNS
+    out = np.empty((len(points), 8, 3))
+    for p, (xi, eta, zeta) in enumerate(points):
+        fx, fy, fz = 1 + s[:, 0] * xi, 1 + s[:, 1] * eta, 1 + s[:, 2] * zeta
+        out[p, :, 0] = s[:, 0] * fy * fz / 8
+        out[p, :, 1] = s[:, 1] * fx * fz / 8
+        out[p, :, 2] = s[:, 2] * fx * fy / 8
+    return out
+
+
+def prepare(X: np.ndarray, conn: np.ndarray) -> dict:
+    """Reference-state arrays of hexahedra.
+
+    X (n_node, 3) reference coordinates; conn (n_el, 8). Returns dN (n_el, 8, 8, 3) gradients dN_a/dX at the
+    2x2x2 points, w (n_el, 8) point volumes [mm^3], V0 (n_el,), b (n_el, 8, 3) uniform gradient, gamma
+    (n_el, 4, 8) hourglass vectors, L0 (n_el,) characteristic length V0 / largest face area [mm], and
+    detJ_min (n_el,) the smallest Jacobian at the 2x2x2 points and the nodes (<= 0 means inverted/degenerate).
+    """
+    xe = X[conn]  # (n_el, 8, 3)
+    dxi = shape_gradients_local(GAUSS_2)  # (8, 8, 3)
+    J = np.einsum("eai,qaj->eqij", xe, dxi)  # dX_i/dxi_j
+    detJ = np.linalg.det(J)
+    dxi_nodes = shape_gradients_local(NODE_SIGNS)
+    detJ_nodes = np.linalg.det(np.einsum("eai,qaj->eqij", xe, dxi_nodes))
+    detJ_min = np.minimum(detJ.min(axis=1), detJ_nodes.min(axis=1))
+    safe = np.where(np.abs(detJ) > 0, detJ, 1.0)
+    Jinv = np.linalg.inv(np.where(np.abs(detJ)[..., None, None] > 0, J, np.eye(3)))
+    dN = np.einsum("qaj,eqji->eqai", dxi, Jinv)
+    w = safe * (detJ != 0)
+    V0 = w.sum(axis=1)
+    b = np.einsum("eq,eqai->eai", w, dN) / np.where(V0 > 0, V0, 1.0)[:, None, None]
+    gamma = HOURGLASS_BASE[None, :, :] - np.einsum("ha,eaj,ebj->ehb", HOURGLASS_BASE, xe, b)
+    # face areas from the diagonals' cross product (exact for planar quads)
+    f = xe[:, FACES]  # (n_el, 6, 4, 3)
+    area = 0.5 * np.linalg.norm(np.cross(f[:, :, 2] - f[:, :, 0], f[:, :, 3] - f[:, :, 1]), axis=-1)
+    L0 = V0 / area.max(axis=1)
+    return dict(dN=np.ascontiguousarray(dN), w=np.ascontiguousarray(w), V0=V0, b=np.ascontiguousarray(b),
+                gamma=np.ascontiguousarray(gamma), L0=L0, detJ_min=detJ_min)
+
+
+@njit_parallel
+def kinematics(x, conn, dN, F, J):
+    """F (n_el, n_qp, 3, 3) = sum_a x_a (x) dN_a; J (n_el, n_qp) = det F. dN (n_el, n_qp, 8, 3)."""
+    for e in prange(conn.shape[0]):
+        for q in range(dN.shape[1]):
+            for i in range(3):
+                for j in range(3):
+                    s = 0.0
+                    for a in range(8):
+                        s += x[conn[e, a], i] * dN[e, q, a, j]
+                    F[e, q, i, j] = s
+            J[e, q] = det3(F[e, q])
+
+
+@njit_parallel
+def kinematics_fbar(x, conn, dN, w, F, J, Fbar, Jbar):
+    """As ``kinematics``, plus Fbar (n_el, n_qp, 3, 3) and Jbar (n_el,) = sum_q w_q J_q / V0."""
+    for e in prange(conn.shape[0]):
+        vol = 0.0
+        jw = 0.0
+        for q in range(dN.shape[1]):
+            for i in range(3):
+                for j in range(3):
+                    s = 0.0
+                    for a in range(8):
+                        s += x[conn[e, a], i] * dN[e, q, a, j]
+                    F[e, q, i, j] = s
+            J[e, q] = det3(F[e, q])
+            vol += w[e, q]
+            jw += w[e, q] * J[e, q]
+        Jbar[e] = jw / vol
+        for q in range(dN.shape[1]):
+            r = (Jbar[e] / J[e, q]) ** (1.0 / 3.0) if J[e, q] > 0.0 else np.nan
+            for i in range(3):
+                for j in range(3):
+                    Fbar[e, q, i, j] = r * F[e, q, i, j]
+
+
+@njit_parallel
+def forces(P, dN, w, fe):
+    """fe (n_el, 8, 3) = sum_q w_q P_q . dN_qa: internal nodal forces [N] from P (n_el, n_qp, 3, 3)."""
+    for e in prange(fe.shape[0]):
+        for a in range(8):
+            for i in range(3):
+                s = 0.0
+                for q in range(dN.shape[1]):
+                    for j in range(3):
+                        s += w[e, q] * P[e, q, i, j] * dN[e, q, a, j]
+                fe[e, a, i] = s
+
+
+@njit_parallel
+def forces_fbar(F, J, Jbar, Pbar, dN, w, Peff, fe):
+    """Exact internal forces of W = sum_q w_q psi(Fbar_q); Pbar = dpsi/dFbar (n_el, n_qp, 3, 3).
+
+    dW = sum_q w_q Peff_q : dF_q with Peff = a Pbar - p F^-T + (pbar_avg / Jbar) J F^-T, where
+    a = (Jbar/J)^(1/3), p = a (Pbar : F) / 3 and pbar_avg the volume average of p. Peff (n_el, n_qp, 3, 3) is
+    scratch owned by the caller (no allocation here); F^-T = cof(F) / J.
+    """
+    n_qp = dN.shape[1]
+    for e in prange(fe.shape[0]):
+        vol = 0.0
+        pw = 0.0
+        for q in range(n_qp):
+            pf = 0.0
+            for i in range(3):
+                for j in range(3):
+                    pf += Pbar[e, q, i, j] * F[e, q, i, j]
+            pw += w[e, q] * (Jbar[e] / J[e, q]) ** (1.0 / 3.0) * pf / 3.0
+            vol += w[e, q]
+        pavg = pw / vol
+        for q in range(n_qp):
+            a = (Jbar[e] / J[e, q]) ** (1.0 / 3.0)
+            pf = 0.0
+            for i in range(3):
+                for j in range(3):
+                    pf += Pbar[e, q, i, j] * F[e, q, i, j]
+            # c F^-T = (pavg / Jbar J - p) cof(F) / J
+            c = (pavg / Jbar[e] * J[e, q] - a * pf / 3.0) / J[e, q]
+            Fq = F[e, q]
+            for i in range(3):
+                i1, i2 = (i + 1) % 3, (i + 2) % 3
+                for j in range(3):
+                    j1, j2 = (j + 1) % 3, (j + 2) % 3
+                    cof = Fq[i1, j1] * Fq[i2, j2] - Fq[i1, j2] * Fq[i2, j1]
+                    Peff[e, q, i, j] = a * Pbar[e, q, i, j] + c * cof
+        for a_ in range(8):
+            for i in range(3):
+                s = 0.0
+                for q in range(n_qp):
+                    for j in range(3):
+                        s += w[e, q] * Peff[e, q, i, j] * dN[e, q, a_, j]
+                fe[e, a_, i] = s
+
+
+@njit_parallel
+def hourglass(x, v, conn, gamma, k_hg, c_hg, fe, e_hg, p_hg):
+    """Add Flanagan-Belytschko hourglass forces to fe (n_el, 8, 3).
+
+    q_alpha = sum_a x_a gamma_alpha,a; stiffness force k q gamma, viscous force c qdot gamma.
+    k_hg, c_hg (n_el,) [N/mm], [N s/mm]; outputs e_hg (n_el,) stored energy 1/2 k |q|^2 [mJ],
+    p_hg (n_el,) viscous dissipation rate c |qdot|^2 [mW].
+    """
+    for e in prange(conn.shape[0]):
+        energy = 0.0
+        power = 0.0
+        for m in range(4):
+            for i in range(3):
+                q = 0.0
+                qd = 0.0
+                for a in range(8):
+                    q += x[conn[e, a], i] * gamma[e, m, a]
+                    qd += v[conn[e, a], i] * gamma[e, m, a]
+                energy += 0.5 * k_hg[e] * q * q
+                power += c_hg[e] * qd * qd
+                g = k_hg[e] * q + c_hg[e] * qd
+                for a in range(8):
+                    fe[e, a, i] += g * gamma[e, m, a]
+        e_hg[e] = energy
+        p_hg[e] = power
+
+
+@njit_parallel
+def element_dt(modulus, L0, rho, dt_e):
+    """dt_e (n_el,) = L0 / sqrt(max_q modulus / rho): reference length over reference wave speed [s]."""
+    for e in prange(L0.shape[0]):
+        m = 0.0
+        for q in range(modulus.shape[1]):
+            m = max(m, modulus[e, q])
+        dt_e[e] = L0[e] / math.sqrt(m / rho[e]) if m > 0.0 else np.inf
+
+
+class Hex8Group:
+    """One homogeneous group: hexahedra of one section (one formulation x one material).
+
+    The engine calls ``update(x, v)`` once per cycle, then ``add_forces(f_int)``; energies and the stable step
+    are read from attributes. All arrays are allocated once here.
+    """
+
+    nodes_per_element = 8
+    cell_type = "hexahedron"
+
+    def __init__(self, name, formulation, X, conn, ids, material, params, frame, rho, hourglass=None):
+        from fdeck.engine.gather import node_slots
+
+        self.name, self.formulation, self.material = name, formulation, material
+        self.conn, self.ids = np.ascontiguousarray(conn, np.int64), ids
+        geo = prepare(X, self.conn)
+        self.__dict__.update(geo)
+        n_el = len(conn)
+        reduced = formulation == "reduced"
+        n_qp = 1 if reduced else 8
+        if reduced:  # one point with the uniform gradient and the whole volume
+            self.dN, self.w = self.b[:, None], self.V0[:, None].copy()
+        self.params, self.frame = params, np.ascontiguousarray(frame)
+        self.rho = np.ascontiguousarray(rho, float)  # (n_el,) density incl. mass scaling [t/mm^3]
+        self.state = np.zeros((n_el, n_qp, material.n_state))
+        self.F = np.zeros((n_el, n_qp, 3, 3))
+        self.F[:] = np.eye(3)
+        self.J = np.ones((n_el, n_qp))
+        self.P = np.zeros((n_el, n_qp, 3, 3))
+        self.psi = np.zeros((n_el, n_qp))
+        self.modulus = np.zeros((n_el, n_qp))
+        self.fe = np.zeros((n_el, 8, 3))
+        self.dt_e = np.zeros(n_el)
+        self.e_hg = np.zeros(n_el)
+        self.p_hg = np.zeros(n_el)
+        if formulation == "fbar":
+            self.Fbar, self.Jbar, self.Peff = self.F.copy(), np.ones(n_el), np.zeros_like(self.P)
+        self.ptr, self.slots = node_slots(self.conn, len(X))
+        # rest-state wave modulus (per element) scales the hourglass stiffness so it stays conservative
+        material.evaluate(self.F, self.frame, self.params, self.state, self.P, self.psi, self.modulus)
+        self.modulus0 = self.modulus.max(axis=1)
+        self.k_hg = np.zeros(n_el)
+        self.c_hg = np.zeros(n_el)
+        if reduced and hourglass is not None:
+            coeff = hourglass.coefficient
+            if hourglass.type == "stiffness":
+                self.k_hg = coeff * self.modulus0 * self.V0 * np.einsum("eai,eai->e", self.b, self.b) / 8.0
+            else:
+                c0 = np.sqrt(self.modulus0 / self.rho)
+                self.c_hg = coeff * self.rho * c0 * self.V0 ** (2.0 / 3.0) / 4.0
+        self.has_hourglass = bool(reduced and hourglass is not None)
+
+    # -- per cycle ---------------------------------------------------------------------------------
+    def update(self, x, v):
+        """Kinematics, material, element forces at positions x (n_node, 3), velocities v (n_node, 3)."""
+        m = self.material
+        if self.formulation == "fbar":
+            kinematics_fbar(x, self.conn, self.dN, self.w, self.F, self.J, self.Fbar, self.Jbar)
+            m.evaluate(self.Fbar, self.frame, self.params, self.state, self.P, self.psi, self.modulus)
+            forces_fbar(self.F, self.J, self.Jbar, self.P, self.dN, self.w, self.Peff, self.fe)
+        else:
+            kinematics(x, self.conn, self.dN, self.F, self.J)
+            m.evaluate(self.F, self.frame, self.params, self.state, self.P, self.psi, self.modulus)
+            forces(self.P, self.dN, self.w, self.fe)
+        if self.has_hourglass:
+            hourglass(x, v, self.conn, self.gamma, self.k_hg, self.c_hg, self.fe, self.e_hg, self.p_hg)
+
+    def add_forces(self, f_int):
+        from fdeck.engine.gather import gather_add
+
+        gather_add(self.fe, self.ptr, self.slots, f_int)
+
+    def strain_energy(self) -> float:
+        """Stored hyperelastic energy sum_q w_q psi_q [mJ]."""
+        return float(np.einsum("eq,eq->", self.w, self.psi))
+
+    def hourglass_energy(self) -> tuple[float, float]:
+        """(stored hourglass energy [mJ], viscous hourglass dissipation rate [mW])."""
+        return float(self.e_hg.sum()), float(self.p_hg.sum())
+
+    def stable_dt(self) -> float:
+        element_dt(self.modulus, self.L0, self.rho, self.dt_e)
+        return float(self.dt_e.min())
+
+    def worst_jacobian(self) -> tuple[float, int]:
+        """(smallest det F over the group's points, its element id)."""
+        flat = int(np.argmin(self.J))
+        return float(self.J.flat[flat]), int(self.ids[flat // self.J.shape[1]])
+
+    def mass(self) -> np.ndarray:
+        """Lumped element masses per node (n_el, 8) [t]: row sums of the consistent mass, int rho N_a dV."""
+        from fdeck.physics.elements.hex8 import GAUSS_2  # noqa: F401  (same module; kept explicit)
+
+        N = np.prod(1 + NODE_SIGNS[None, :, :] * GAUSS_2[:, None, :], axis=2) / 8.0  # (8 qp, 8 nodes)
+        if self.w.shape[1] == 8:
+            return self.rho[:, None] * self.w @ N
+        return self.rho[:, None] * np.repeat(self.V0[:, None] / 8.0, 8, axis=1)
+
+    # -- output ------------------------------------------------------------------------------------
+    def cell_fields(self) -> dict[str, np.ndarray]:
+        """Per-element output averaged over points: Cauchy stress (n_el, 6) XX YY ZZ XY YZ XZ [MPa],
+        strain-energy density [MPa], J, the formulation's diagnostics and the material's."""
+        F = self.Fbar if self.formulation == "fbar" else self.F
+        J = np.linalg.det(F)
+        sigma = np.einsum("eqij,eqkj->eqik", self.P, F) / J[..., None, None]
+        wn = self.w / self.w.sum(axis=1, keepdims=True)
+        s = np.einsum("eq,eqij->eij", wn, sigma)
+        out = {
+            "stress": np.stack([s[:, 0, 0], s[:, 1, 1], s[:, 2, 2], s[:, 0, 1], s[:, 1, 2], s[:, 0, 2]], axis=1),
+            "strain_energy_density": np.einsum("eq,eq->e", wn, self.psi),
+            "J": np.einsum("eq,eq->e", wn, self.J),
+        }
+        if self.formulation == "fbar":
+            out["J_bar"] = self.Jbar.copy()
+        if self.has_hourglass:
+            out["hourglass_energy_density"] = self.e_hg / self.V0
+        if self.material.diagnose is not None:
+            names = self.material.diagnostics
+            vals = np.zeros((len(self.conn), len(names)))
+            for e in range(len(self.conn)):
+                for q in range(F.shape[1]):
+                    vals[e] += wn[e, q] * self.material.diagnose(F[e, q], self.frame[e], self.params[e])
+            out.update({n: vals[:, i] for i, n in enumerate(names)})
+        return out
+
+
+def build(name, formulation, X, conn, ids, material, params, frame, rho, hourglass):
+    """Registry hook: a Hex8Group for one section."""
+    return Hex8Group(name, formulation, X, conn, ids, material, params, frame, rho, hourglass)
+
+
+for _name, _doc in (("full", "2x2x2 Gauss integration"),
+                    ("fbar", "F-bar / mean dilatation, 2x2x2 points with volume-averaged J"),
+                    ("reduced", "one point, uniform gradient, Flanagan-Belytschko hourglass control")):
+    register_formulation(FormulationKind(_name, build, _doc, 8))

@@ -1,0 +1,159 @@
+"""One run: deck file -> compile -> engine -> frames, history, summary; returns the process exit code.
+
+Exit codes: 0 every check passed; 2 bad input (deck or geometry); 3 a check failed; 4 numerical failure
+(NaN, inverted element); 130 / 143 stopped by SIGINT / SIGTERM (a last frame and the summary are written).
+"""
+
+from __future__ import annotations
+
+import signal
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from fdeck import checks as checks_mod
+from fdeck.engine import solver
+
+EXIT_OK, EXIT_INPUT, EXIT_CHECK, EXIT_NUMERIC = 0, 2, 3, 4
+
+
+def assemble_cells(problem) -> dict[str, np.ndarray]:
+    """Cell fields of every group placed in mesh order (concatenated over cell types); NaN where a field is not
+    defined for an element's group. Symmetric tensors are (n_el, 6)."""
+    offsets, total = {}, 0
+    for ctype, conn in problem.cells.items():
+        offsets[ctype] = total
+        total += len(conn)
+    out: dict[str, np.ndarray] = {}
+    for g in problem.groups:
+        rows = offsets[g.cell_type] + g.element_index
+        for name, val in g.cell_fields().items():
+            if name not in out:
+                out[name] = np.full((total,) + val.shape[1:], np.nan)
+            out[name][rows] = val
+    return out
+
+
+class Outputs(solver.Sink):
+    """Frame series, history file and progress reporting for one run."""
+
+    def __init__(self, problem, out_dir: Path, name: str, progress):
+        from fdeck.io.frames import open_series
+        from fdeck.io.history import HistoryWriter
+
+        self.problem, self.progress_fn = problem, progress
+        out_dir.mkdir(parents=True, exist_ok=True)
+        self.series = open_series(problem.deck.output.formats, out_dir, name, problem.X, problem.cells)
+        self.hist = HistoryWriter(out_dir / "history.csv", solver.history_columns(problem))
+        self.frames_written = 0
+        self.last_frame_time = -1.0
+
+    def frame(self, t, x, v):
+        point = {"displacement": x - self.problem.X, "velocity": v.copy()}
+        cells = assemble_cells(self.problem)
+        for s in self.series:
+            s.write(t, point, cells)
+        self.frames_written += 1
+        self.last_frame_time = t
+
+    def history(self, row):
+        self.hist.write_row(row)
+
+    def progress(self, t, cycles, dt):
+        self.progress_fn(t, cycles, dt)
+
+    def close(self):
+        for s in self.series:
+            s.close()
+        self.hist.close()
+
+
+class _Signals:
+    """SIGINT/SIGTERM set a flag the engine polls every cycle."""
+
+    def __init__(self):
+        self.received = None
+
+    def __enter__(self):
+        self.saved = {s: signal.signal(s, self._handle) for s in (signal.SIGINT, signal.SIGTERM)}
+        return self
+
+    def _handle(self, signum, frame):
+        self.received = signum
+
+    def __exit__(self, *exc):
+        for s, h in self.saved.items():
+            signal.signal(s, h)
+
+
+def execute(deck, base: Path, out_dir: Path, name: str, deck_path: str, progress=lambda *a: None,
+            echo=print) -> tuple[int, dict]:
+    """Compile and run a validated deck; returns (exit code, summary dict). Raises CompileError on bad geometry."""
+    from fdeck.compile.problem import compile_deck
+    from fdeck.io.summary import write_json_atomic
+
+    t_compile = time.perf_counter()
+    problem = compile_deck(deck, base)
+    t_compile = time.perf_counter() - t_compile
+    out = Outputs(problem, out_dir, name, progress)
+    with _Signals() as sig:
+        out.frame(0.0, problem.X.copy(), np.zeros_like(problem.X))
+        result = solver.run(problem, out, should_stop=lambda: sig.received is not None)
+        if result.status in ("interrupted", "failed") and result.t > out.last_frame_time:
+            out.frame(result.t, result.final_positions, result.final_velocities)
+    out.close()
+    hist = np.array(result.history) if result.history else np.zeros((0, len(result.columns)))
+    verdicts = checks_mod.evaluate(deck.checks, hist, result.columns, problem.duration)
+    summary = make_summary(deck_path, deck, problem, result, verdicts, t_compile, out.frames_written)
+    if result.status == "interrupted":
+        code = 130 if sig.received == signal.SIGINT else 143
+    elif result.status == "failed":
+        code = EXIT_NUMERIC
+    else:
+        code = EXIT_CHECK if any(not c["passed"] for c in verdicts) else EXIT_OK
+    summary["exit_code"] = code
+    write_json_atomic(out_dir / "summary.json", summary)
+    return code, summary
+
+
+def make_summary(deck_path, deck, problem, result, verdicts, t_compile, frames) -> dict:
+    n_el = problem.n_element
+    element_time = sum(v for k, v in result.timings.items() if k.startswith("section"))
+    loop_time = sum(result.timings.values())
+    per = max(result.cycles, 1) * max(n_el, 1)
+    last = dict(zip(result.columns, result.history[-1])) if result.history else {}
+    return {
+        "deck": str(deck_path),
+        "title": deck.title,
+        "units": deck.units,
+        "status": result.status,
+        "message": result.message,
+        "elements": n_el,
+        "nodes": problem.n_node,
+        "cycles": result.cycles,
+        "simulated_time": result.t,
+        "wall_time": result.wall,
+        "compile_time": t_compile,
+        "us_per_element_cycle": 1e6 * loop_time / per,
+        "us_per_element_cycle_elements_only": 1e6 * element_time / per,
+        "time_per_effect": dict(sorted(result.timings.items(), key=lambda kv: -kv[1])),
+        "dt_min": result.dt_min if result.cycles else None,
+        "dt_max": result.dt_max if result.cycles else None,
+        "added_mass_percent": [100.0 * a for a in result.added_mass],
+        "frames": frames,
+        "final": last,
+        "checks": verdicts,
+    }
+
+
+def timing_table(summary: dict) -> str:
+    """Where the time went, one line per effect."""
+    total = sum(summary["time_per_effect"].values()) or 1.0
+    lines = [f"  {k:<40s} {v:9.3f} s  {100 * v / total:5.1f} %" for k, v in summary["time_per_effect"].items()]
+    return "\n".join(lines)
+
+
+def _stderr(msg):
+    print(msg, file=sys.stderr)
