@@ -7,6 +7,7 @@ filled in); cross references by name are checked in ``Deck``'s validator, mesh s
 
 from __future__ import annotations
 
+import bisect
 from typing import Annotated, Literal, Union
 
 from pydantic import Field, model_validator
@@ -129,6 +130,20 @@ class Tabular(Card):
             raise ValueError("times in `points` must increase strictly")
         return self
 
+    def curve(self):
+        """a(t): linear interpolation, constant beyond the ends."""
+        ts, vs = [p[0] for p in self.points], [p[1] for p in self.points]
+
+        def a(t: float) -> float:
+            if t <= ts[0]:
+                return vs[0]
+            if t >= ts[-1]:
+                return vs[-1]
+            i = bisect.bisect_right(ts, t)
+            return vs[i - 1] + (vs[i] - vs[i - 1]) * (t - ts[i - 1]) / (ts[i] - ts[i - 1])
+
+        return a
+
 
 class SmoothStep(Card):
     """Quintic smooth step from a0 at t0 to a1 at t1 (zero velocity and acceleration at both ends)."""
@@ -144,6 +159,16 @@ class SmoothStep(Card):
         if self.t1 <= self.t0:
             raise ValueError("t1 must be greater than t0")
         return self
+
+    def curve(self):
+        t0, t1, a0, a1 = self.t0, self.t1, self.a0, self.a1
+        return lambda t: a0 + (a1 - a0) * smoothstep((t - t0) / (t1 - t0))
+
+
+def smoothstep(tau: float) -> float:
+    """Quintic 0 -> 1 on [0, 1] with zero first and second derivatives at both ends."""
+    s = min(1.0, max(0.0, tau))
+    return s * s * s * (10.0 + s * (-15.0 + 6.0 * s))
 
 
 Amplitude = Annotated[Union[Tabular, SmoothStep], Field(discriminator="type")]
