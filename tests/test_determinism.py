@@ -1,0 +1,46 @@
+"""Runs are bitwise identical whatever the number of threads (fixed-order gather, no atomics)."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import pytest
+
+from helpers import ROOT
+
+pytestmark = pytest.mark.unit
+
+SCRIPT = """
+import hashlib, sys, numba
+from fdeck.compile.problem import compile_deck
+from fdeck.deck.model import Deck
+from fdeck.engine import solver
+solver.SERIAL_BELOW = 0  # use every thread even on this small model
+d = Deck.model_validate({
+    "mesh": {"block": {"size": [20, 20, 4], "divisions": [20, 20, 4]}},
+    "materials": {"m": {"type": "neo_hookean", "density": 1e-9, "youngs_modulus": 100.0, "poisson_ratio": 0.4}},
+    "sections": [{"material": "m", "formulation": sys.argv[1]}],
+    "boundary": [{"type": "fixed", "nodes": "zmin"},
+                 {"type": "velocity", "nodes": "zmax", "dofs": ["x", "z"], "value": -500.0}],
+    "steps": [{"duration": 1.0, "max_cycles": 60}], "output": {"history_points": 2}})
+p = compile_deck(d)
+r = solver.run(p, solver.Sink())
+print(numba.get_num_threads(), hashlib.sha256(r.final_positions.tobytes()).hexdigest())
+"""
+
+
+@pytest.mark.parametrize("form", ["fbar", "reduced"])
+def test_results_identical_on_one_and_two_threads(form):
+    """Requirement: final positions are bitwise equal with NUMBA_NUM_THREADS=1 and 2."""
+    digests = set()
+    for threads in ("1", "2"):
+        env = dict(os.environ, NUMBA_NUM_THREADS=threads)
+        r = subprocess.run([sys.executable, "-c", SCRIPT, form], cwd=ROOT, env=env, capture_output=True, text=True,
+                           timeout=600)
+        assert r.returncode == 0, r.stderr
+        n, digest = r.stdout.split()
+        assert n == threads
+        digests.add(digest)
+    assert len(digests) == 1
