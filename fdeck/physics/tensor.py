@@ -51,3 +51,13 @@ def sym_eig_max6(a00, a11, a22, a01, a12, a02):
 def sym_eig_max(A):
     """Largest eigenvalue of a symmetric (3, 3) array."""
     return sym_eig_max6(A[0, 0], A[1, 1], A[2, 2], A[0, 1], A[1, 2], A[0, 2])
+
+
+@njit
+def sym_bound6(a00, a11, a22, a01, a12, a02):
+    """Gershgorin upper bound of the largest eigenvalue of a symmetric matrix: max_i (a_ii + sum_j |a_ij|).
+
+    Exact for diagonal matrices (the rest state) and within the off-diagonal magnitudes otherwise; used for
+    stable-step moduli, where an upper bound is what is needed and transcendental functions cost too much.
+    """
+    return max(a00 + abs(a01) + abs(a02), a11 + abs(a01) + abs(a12), a22 + abs(a02) + abs(a12))

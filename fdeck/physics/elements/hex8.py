@@ -81,39 +81,72 @@ def prepare(X: np.ndarray, conn: np.ndarray) -> dict:
                 gamma=np.ascontiguousarray(gamma), L0=L0, detJ_min=detJ_min)
 
 
+@njit
+def _deformation_gradients(x, conn, dN, F, J, e):
+    """F[e, q] = sum_a x_a (x) dN[e, q, a] and J[e, q] = det F for one element; node coordinates read once."""
+    n_qp = dN.shape[1]
+    for q in range(n_qp):
+        for i in range(3):
+            for j in range(3):
+                F[e, q, i, j] = 0.0
+    for a in range(8):
+        n = conn[e, a]
+        x0, x1, x2 = x[n, 0], x[n, 1], x[n, 2]
+        for q in range(n_qp):
+            d0, d1, d2 = dN[e, q, a, 0], dN[e, q, a, 1], dN[e, q, a, 2]
+            F[e, q, 0, 0] += x0 * d0
+            F[e, q, 0, 1] += x0 * d1
+            F[e, q, 0, 2] += x0 * d2
+            F[e, q, 1, 0] += x1 * d0
+            F[e, q, 1, 1] += x1 * d1
+            F[e, q, 1, 2] += x1 * d2
+            F[e, q, 2, 0] += x2 * d0
+            F[e, q, 2, 1] += x2 * d1
+            F[e, q, 2, 2] += x2 * d2
+    for q in range(n_qp):
+        J[e, q] = det3(F[e, q])
+
+
+@njit
+def _nodal_forces(P, dN, w, fe, e):
+    """fe[e, a] = sum_q w_q P_q . dN_qa for one element."""
+    for a in range(8):
+        f0 = 0.0
+        f1 = 0.0
+        f2 = 0.0
+        for q in range(dN.shape[1]):
+            wq = w[e, q]
+            d0, d1, d2 = wq * dN[e, q, a, 0], wq * dN[e, q, a, 1], wq * dN[e, q, a, 2]
+            f0 += P[e, q, 0, 0] * d0 + P[e, q, 0, 1] * d1 + P[e, q, 0, 2] * d2
+            f1 += P[e, q, 1, 0] * d0 + P[e, q, 1, 1] * d1 + P[e, q, 1, 2] * d2
+            f2 += P[e, q, 2, 0] * d0 + P[e, q, 2, 1] * d1 + P[e, q, 2, 2] * d2
+        fe[e, a, 0] = f0
+        fe[e, a, 1] = f1
+        fe[e, a, 2] = f2
+
+
 @njit_parallel
 def kinematics(x, conn, dN, F, J):
     """F (n_el, n_qp, 3, 3) = sum_a x_a (x) dN_a; J (n_el, n_qp) = det F. dN (n_el, n_qp, 8, 3)."""
     for e in prange(conn.shape[0]):
-        for q in range(dN.shape[1]):
-            for i in range(3):
-                for j in range(3):
-                    s = 0.0
-                    for a in range(8):
-                        s += x[conn[e, a], i] * dN[e, q, a, j]
-                    F[e, q, i, j] = s
-            J[e, q] = det3(F[e, q])
+        _deformation_gradients(x, conn, dN, F, J, e)
 
 
 @njit_parallel
-def kinematics_fbar(x, conn, dN, w, F, J, Fbar, Jbar):
-    """As ``kinematics``, plus Fbar (n_el, n_qp, 3, 3) and Jbar (n_el,) = sum_q w_q J_q / V0."""
+def kinematics_fbar(x, conn, dN, w, F, J, Fbar, Jbar, ratio):
+    """As ``kinematics``, plus Fbar (n_el, n_qp, 3, 3), Jbar (n_el,) = sum_q w_q J_q / V0 and
+    ratio (n_el, n_qp) = (Jbar / J)^(1/3), so that Fbar = ratio F."""
     for e in prange(conn.shape[0]):
+        _deformation_gradients(x, conn, dN, F, J, e)
         vol = 0.0
         jw = 0.0
         for q in range(dN.shape[1]):
-            for i in range(3):
-                for j in range(3):
-                    s = 0.0
-                    for a in range(8):
-                        s += x[conn[e, a], i] * dN[e, q, a, j]
-                    F[e, q, i, j] = s
-            J[e, q] = det3(F[e, q])
             vol += w[e, q]
             jw += w[e, q] * J[e, q]
         Jbar[e] = jw / vol
         for q in range(dN.shape[1]):
             r = (Jbar[e] / J[e, q]) ** (1.0 / 3.0) if J[e, q] > 0.0 else np.nan
+            ratio[e, q] = r
             for i in range(3):
                 for j in range(3):
                     Fbar[e, q, i, j] = r * F[e, q, i, j]
@@ -123,22 +156,16 @@ def kinematics_fbar(x, conn, dN, w, F, J, Fbar, Jbar):
 def forces(P, dN, w, fe):
     """fe (n_el, 8, 3) = sum_q w_q P_q . dN_qa: internal nodal forces [N] from P (n_el, n_qp, 3, 3)."""
     for e in prange(fe.shape[0]):
-        for a in range(8):
-            for i in range(3):
-                s = 0.0
-                for q in range(dN.shape[1]):
-                    for j in range(3):
-                        s += w[e, q] * P[e, q, i, j] * dN[e, q, a, j]
-                fe[e, a, i] = s
+        _nodal_forces(P, dN, w, fe, e)
 
 
 @njit_parallel
-def forces_fbar(F, J, Jbar, Pbar, dN, w, Peff, fe):
+def forces_fbar(F, J, Jbar, ratio, Pbar, dN, w, Peff, p, fe):
     """Exact internal forces of W = sum_q w_q psi(Fbar_q); Pbar = dpsi/dFbar (n_el, n_qp, 3, 3).
 
     dW = sum_q w_q Peff_q : dF_q with Peff = a Pbar - p F^-T + (pbar_avg / Jbar) J F^-T, where
-    a = (Jbar/J)^(1/3), p = a (Pbar : F) / 3 and pbar_avg the volume average of p. Peff (n_el, n_qp, 3, 3) is
-    scratch owned by the caller (no allocation here); F^-T = cof(F) / J.
+    a = (Jbar/J)^(1/3) (``ratio``), p = a (Pbar : F) / 3 and pbar_avg the volume average of p.
+    Peff (n_el, n_qp, 3, 3) and p (n_el, n_qp) are scratch owned by the caller; F^-T = cof(F) / J.
     """
     n_qp = dN.shape[1]
     for e in prange(fe.shape[0]):
@@ -149,17 +176,13 @@ def forces_fbar(F, J, Jbar, Pbar, dN, w, Peff, fe):
             for i in range(3):
                 for j in range(3):
                     pf += Pbar[e, q, i, j] * F[e, q, i, j]
-            pw += w[e, q] * (Jbar[e] / J[e, q]) ** (1.0 / 3.0) * pf / 3.0
+            p[e, q] = ratio[e, q] * pf / 3.0
+            pw += w[e, q] * p[e, q]
             vol += w[e, q]
         pavg = pw / vol
         for q in range(n_qp):
-            a = (Jbar[e] / J[e, q]) ** (1.0 / 3.0)
-            pf = 0.0
-            for i in range(3):
-                for j in range(3):
-                    pf += Pbar[e, q, i, j] * F[e, q, i, j]
-            # c F^-T = (pavg / Jbar J - p) cof(F) / J
-            c = (pavg / Jbar[e] * J[e, q] - a * pf / 3.0) / J[e, q]
+            a = ratio[e, q]
+            c = (pavg / Jbar[e] * J[e, q] - p[e, q]) / J[e, q]  # c F^-T = (pavg J / Jbar - p) cof(F) / J
             Fq = F[e, q]
             for i in range(3):
                 i1, i2 = (i + 1) % 3, (i + 2) % 3
@@ -167,13 +190,7 @@ def forces_fbar(F, J, Jbar, Pbar, dN, w, Peff, fe):
                     j1, j2 = (j + 1) % 3, (j + 2) % 3
                     cof = Fq[i1, j1] * Fq[i2, j2] - Fq[i1, j2] * Fq[i2, j1]
                     Peff[e, q, i, j] = a * Pbar[e, q, i, j] + c * cof
-        for a_ in range(8):
-            for i in range(3):
-                s = 0.0
-                for q in range(n_qp):
-                    for j in range(3):
-                        s += w[e, q] * Peff[e, q, i, j] * dN[e, q, a_, j]
-                fe[e, a_, i] = s
+        _nodal_forces(Peff, dN, w, fe, e)
 
 
 @njit_parallel
@@ -250,6 +267,7 @@ class Hex8Group:
         self.p_hg = np.zeros(n_el)
         if formulation == "fbar":
             self.Fbar, self.Jbar, self.Peff = self.F.copy(), np.ones(n_el), np.zeros_like(self.P)
+            self.ratio, self.p = np.ones((n_el, n_qp)), np.zeros((n_el, n_qp))
         self.ptr, self.slots = node_slots(self.conn, len(X))
         # rest-state wave modulus (per element) scales the hourglass stiffness so it stays conservative
         material.evaluate(self.F, self.frame, self.params, self.state, self.P, self.psi, self.modulus)
@@ -270,9 +288,9 @@ class Hex8Group:
         """Kinematics, material, element forces at positions x (n_node, 3), velocities v (n_node, 3)."""
         m = self.material
         if self.formulation == "fbar":
-            kinematics_fbar(x, self.conn, self.dN, self.w, self.F, self.J, self.Fbar, self.Jbar)
+            kinematics_fbar(x, self.conn, self.dN, self.w, self.F, self.J, self.Fbar, self.Jbar, self.ratio)
             m.evaluate(self.Fbar, self.frame, self.params, self.state, self.P, self.psi, self.modulus)
-            forces_fbar(self.F, self.J, self.Jbar, self.P, self.dN, self.w, self.Peff, self.fe)
+            forces_fbar(self.F, self.J, self.Jbar, self.ratio, self.P, self.dN, self.w, self.Peff, self.p, self.fe)
         else:
             kinematics(x, self.conn, self.dN, self.F, self.J)
             m.evaluate(self.F, self.frame, self.params, self.state, self.P, self.psi, self.modulus)

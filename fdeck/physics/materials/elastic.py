@@ -12,7 +12,7 @@ from pydantic import Field
 
 from fdeck.deck.base import MaterialCard
 from fdeck.jit import njit, njit_parallel, prange
-from fdeck.physics.tensor import sym_eig_max6
+from fdeck.physics.tensor import sym_bound6
 from fdeck.registry import MaterialKind, register_material
 
 
@@ -54,9 +54,9 @@ def point(F, frame, params, state, P):
         P[i, 2] = F[i, 0] * s02 + F[i, 1] * s12 + F[i, 2] * s22
     psi = 0.5 * lam * tr * tr + mu * (e00 * e00 + e11 * e11 + e22 * e22 + 2.0 * (e01 * e01 + e12 * e12 + e02 * e02))
     # Reference acoustic tensor A = dP/dF: delta_ik S_JL + F_iI C_IJKL F_kK, bounded by
-    # max eig(S) + (lam + 2 mu) max eig(F^T F); exact (lam + 2 mu) at rest.
-    c_max = 1.0 + 2.0 * sym_eig_max6(e00, e11, e22, e01, e12, e02)
-    return psi, max(0.0, sym_eig_max6(s00, s11, s22, s01, s12, s02)) + (lam + 2.0 * mu) * c_max
+    # max eig(S) + (lam + 2 mu) max eig(F^T F) (eigenvalues bounded by Gershgorin); exact (lam + 2 mu) at rest.
+    c_max = 1.0 + 2.0 * sym_bound6(e00, e11, e22, e01, e12, e02)
+    return psi, max(0.0, sym_bound6(s00, s11, s22, s01, s12, s02)) + (lam + 2.0 * mu) * c_max
 
 
 @njit_parallel

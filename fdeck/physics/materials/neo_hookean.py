@@ -11,7 +11,7 @@ from pydantic import Field
 
 from fdeck.deck.base import MaterialCard
 from fdeck.jit import njit, njit_parallel, prange
-from fdeck.physics.tensor import sym_eig_max6
+from fdeck.physics.tensor import sym_bound6
 from fdeck.registry import MaterialKind, register_material
 
 
@@ -65,7 +65,7 @@ def point(F, frame, params, state, P):
     psi = 0.5 * mu * (i1 - 3.0) - mu * logJ + 0.5 * lam * logJ * logJ
     # Reference acoustic tensor of A = dP/dF = mu I + (mu - lam ln J) F^-T(x)F^-1 + lam F^-T x F^-T is bounded by
     # mu + (|mu - lam ln J| + lam) / sigma_min(F)^2; exact (lam + 2 mu) at rest.
-    return psi, mu + (abs(mu - lam * logJ) + lam) * sym_eig_max6(b00, b11, b22, b01, b12, b02)
+    return psi, mu + (abs(mu - lam * logJ) + lam) * sym_bound6(b00, b11, b22, b01, b12, b02)
 
 
 @njit_parallel
