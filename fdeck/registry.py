@@ -66,7 +66,20 @@ class FormulationKind:
     nodes_per_element: int = 8
 
 
+@dataclass(frozen=True)
+class MeasureKind:
+    """A quantity a deck asks to be recorded (history column(s) and final value in summary.json).
+
+    build(card, ctx) -> object with ``columns`` (list of names) and ``evaluate(x, v) -> list[float]``.
+    """
+
+    name: str
+    card: type
+    build: Callable
+
+
 MATERIALS: dict[str, MaterialKind] = {}
+MEASURES: dict[str, MeasureKind] = {}
 EFFECTS: dict[str, EffectKind] = {}
 FORMULATIONS: dict[str, FormulationKind] = {}
 
@@ -88,6 +101,10 @@ def register_effect(kind: EffectKind) -> None:
 
 def register_formulation(kind: FormulationKind) -> None:
     _add(FORMULATIONS, kind)
+
+
+def register_measure(kind: MeasureKind) -> None:
+    _add(MEASURES, kind)
 
 
 def load_plugins() -> None:

@@ -144,6 +144,7 @@ def make_summary(deck_path, deck, problem, result, verdicts, t_compile, frames) 
         "added_mass_percent": [100.0 * a for a in result.added_mass],
         "frames": frames,
         "final": last,
+        "measures": {c: last.get(c) for m in problem.measures for c in m.columns},
         "checks": verdicts,
     }
 

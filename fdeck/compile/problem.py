@@ -40,6 +40,7 @@ class Problem:
     steps: list[StepPlan]
     reactions: dict[str, np.ndarray] = field(default_factory=dict)
     damping: object | None = None
+    measures: list = field(default_factory=list)  # objects with columns and evaluate(x, v)
 
     @property
     def n_node(self) -> int:
@@ -218,6 +219,14 @@ def compile_deck(deck: Deck, base: Path = Path(".")) -> Problem:
             reactions[name] = ctx.node_set(name)
         except CompileError as exc:
             problems += [(("output", "reactions", i), m) for _, m in exc.problems]
+    measures = []
+    ctx.groups = groups
+    for i, card in enumerate(deck.output.measures):
+        ctx.path = ("output", "measures", i)
+        try:
+            measures.append(registry.MEASURES[card.type].build(card, ctx))
+        except CompileError as exc:
+            problems += exc.problems
     if problems:
         raise CompileError(problems)
     steps = plan_steps(deck, groups, mass)
@@ -225,4 +234,5 @@ def compile_deck(deck: Deck, base: Path = Path(".")) -> Problem:
     if any(s.alpha > 0 for s in steps):  # built only when a step asks for it
         damping = MassDamping(mass.copy())
         effects.append(damping)
-    return Problem(deck, mesh.X, mesh.cells, groups, effects, mesh.node_sets, mass, steps, reactions, damping)
+    return Problem(deck, mesh.X, mesh.cells, groups, effects, mesh.node_sets, mass, steps, reactions, damping,
+                   measures)

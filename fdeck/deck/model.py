@@ -33,6 +33,7 @@ BoundaryCard = _union("boundary", registry.EFFECTS)
 LoadCard = _union("loads", registry.EFFECTS)
 _section_effects = [k for k in registry.EFFECTS.values() if k.section == "section"]
 SectionEffectCard = _union("section", registry.EFFECTS) if _section_effects else None
+MeasureCard = _union(None, registry.MEASURES)
 Formulation = Literal[tuple(registry.FORMULATIONS)]  # type: ignore[valid-type]
 
 
@@ -209,6 +210,8 @@ class Output(Card):
     formats: list[Literal["vtu", "xdmf"]] = Field(["vtu"], min_length=1)
     history_points: int = Field(1000, ge=2, description="History rows, evenly spaced over the run.")
     reactions: list[str] = Field(default_factory=list, description="Node sets whose reaction forces are recorded.")
+    measures: list[MeasureCard] = Field(  # type: ignore[valid-type]
+        default_factory=list, description="Quantities recorded as history columns and reported in summary.json.")
 
 
 class QuasiStatic(Card):

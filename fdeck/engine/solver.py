@@ -61,6 +61,8 @@ def history_columns(problem) -> list[str]:
             "damping_energy", "external_work", "energy_balance_error"]
     for name in problem.reactions:
         cols += [f"reaction_{name}_{c}" for c in "xyz"]
+    for m in problem.measures:
+        cols += m.columns
     return cols
 
 
@@ -197,6 +199,10 @@ def _run(problem, sink: Sink, should_stop) -> Result:
                     row = [t, dt, ke, internal, se, hg + d_hg, d_damp, w_ext, err]
                     for nodes in problem.reactions.values():
                         row += reaction[nodes].sum(axis=0).tolist()
+                    t0 = timer.add("integrator", t0)
+                    for meas in problem.measures:
+                        row += meas.evaluate(x, v)
+                    t0 = timer.add("measures", t0)
                     res.history.append(row)
                     sink.history(row)
                     while next_hist < len(hist_times) and hist_times[next_hist] <= t + 1e-12 * T:

@@ -330,29 +330,31 @@ class Hex8Group:
         return self.rho[:, None] * np.repeat(self.V0[:, None] / 8.0, 8, axis=1)
 
     # -- output ------------------------------------------------------------------------------------
-    def cell_fields(self) -> dict[str, np.ndarray]:
-        """Per-element output averaged over points: Cauchy stress (n_el, 6) XX YY ZZ XY YZ XZ [MPa],
-        strain-energy density [MPa], J, the formulation's diagnostics and the material's."""
-        F = self.Fbar if self.formulation == "fbar" else self.F
-        J = np.linalg.det(F)
-        sigma = np.einsum("eqij,eqkj->eqik", self.P, F) / J[..., None, None]
-        wn = self.w / self.w.sum(axis=1, keepdims=True)
+    def cell_fields(self, idx=None) -> dict[str, np.ndarray]:
+        """Per-element output averaged over points, for all elements or the local indices ``idx``:
+        Cauchy stress (n, 6) XX YY ZZ XY YZ XZ [MPa], strain-energy density [MPa], J, the formulation's
+        diagnostics (J_bar, hourglass energy density) and the material's (see its ``diagnostics``)."""
+        idx = np.arange(len(self.conn)) if idx is None else np.asarray(idx)
+        F = (self.Fbar if self.formulation == "fbar" else self.F)[idx]
+        P, w = self.P[idx], self.w[idx]
+        sigma = np.einsum("eqij,eqkj->eqik", P, F) / np.linalg.det(F)[..., None, None]
+        wn = w / w.sum(axis=1, keepdims=True)
         s = np.einsum("eq,eqij->eij", wn, sigma)
         out = {
             "stress": np.stack([s[:, 0, 0], s[:, 1, 1], s[:, 2, 2], s[:, 0, 1], s[:, 1, 2], s[:, 0, 2]], axis=1),
-            "strain_energy_density": np.einsum("eq,eq->e", wn, self.psi),
-            "J": np.einsum("eq,eq->e", wn, self.J),
+            "strain_energy_density": np.einsum("eq,eq->e", wn, self.psi[idx]),
+            "J": np.einsum("eq,eq->e", wn, self.J[idx]),
         }
         if self.formulation == "fbar":
-            out["J_bar"] = self.Jbar.copy()
+            out["J_bar"] = self.Jbar[idx]
         if self.has_hourglass:
-            out["hourglass_energy_density"] = self.e_hg / self.V0
+            out["hourglass_energy_density"] = self.e_hg[idx] / self.V0[idx]
         if self.material.diagnose is not None:
             names = self.material.diagnostics
-            vals = np.zeros((len(self.conn), len(names)))
-            for e in range(len(self.conn)):
+            vals = np.zeros((len(idx), len(names)))
+            for k, e in enumerate(idx):
                 for q in range(F.shape[1]):
-                    vals[e] += wn[e, q] * self.material.diagnose(F[e, q], self.frame[e], self.params[e])
+                    vals[k] += wn[k, q] * self.material.diagnose(F[k, q], self.frame[e], self.params[e])
             out.update({n: vals[:, i] for i, n in enumerate(names)})
         return out
 
