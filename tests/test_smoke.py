@@ -9,7 +9,7 @@ import pytest
 from helpers import DECKS
 
 pytestmark = pytest.mark.smoke
-ALL = sorted(DECKS.glob("*.yaml"))
+ALL = sorted(DECKS.glob("*.yaml")) + sorted(DECKS.glob("three_point_bending/*.yaml"))
 
 
 @pytest.mark.parametrize("path", ALL, ids=[p.stem for p in ALL])

@@ -1,0 +1,86 @@
+"""Three-point bending of the interlock: run the variants of decks/three_point_bending/ and tabulate what each cure
+buys (spurious-mode indicator, end rise) against what it costs (wall time, us per element-cycle).
+
+    python studies/three_point_bending.py [VARIANT ...]   # default: every deck in decks/three_point_bending/
+    python studies/three_point_bending.py --report        # table + pictures from existing results only
+
+Results go to results/three_point_bending/<variant>/; the table to studies/out/three_point_bending.md and the
+side views (half model mirrored about mid-span, final frame) to docs/img/three_point_bending_<variant>.png.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+DECKS = ROOT / "decks" / "three_point_bending"
+RESULTS = ROOT / "results" / "three_point_bending"
+
+
+def side_view(variant: str, out: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import meshio
+    import numpy as np
+
+    frames = sorted((RESULTS / variant).glob(f"{variant}_*.vtu"))
+    m = meshio.read(frames[-1])
+    x = m.points + m.point_data["displacement"]
+    hexes = m.cells_dict["hexahedron"]
+    fig, ax = plt.subplots(figsize=(8, 2.6))
+    for sign in (1, -1):  # the model is the half x >= 100; mirror it
+        for c in hexes:
+            face = x[c[[0, 1, 5, 4, 0]]]  # the y = 0 face: x-z outline
+            ax.plot(100 + sign * (face[:, 0] - 100), face[:, 2], lw=0.3, color="k")
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [mm]")
+    ax.set_ylabel("z [mm]")
+    ax.set_title(variant.replace("_", " "))
+    fig.tight_layout()
+    fig.savefig(out, dpi=150)
+    plt.close(fig)
+
+
+def report(variants: list[str]) -> str:
+    rows = ["| variant | elements | spurious-mode indicator [mm] | end rise [mm] | energy balance | wall [s] | "
+            "us / element-cycle |", "|---|---|---|---|---|---|---|"]
+    img = ROOT / "docs" / "img"
+    img.mkdir(parents=True, exist_ok=True)
+    for v in variants:
+        f = RESULTS / v / "summary.json"
+        if not f.exists():
+            continue
+        s = json.loads(f.read_text())
+        bal = next((c["value"] for c in s["checks"] if c["name"] == "energy_balance"), float("nan"))
+        rows.append(f"| {v} | {s['elements']} | {s['measures']['spurious_mode_indicator']:.4f} | "
+                    f"{s['measures']['end_rise']:.2f} | {bal:.1e} | {s['wall_time']:.0f} | "
+                    f"{s['us_per_element_cycle']:.2f} |")
+        side_view(v, img / f"three_point_bending_{v}.png")
+    table = "\n".join(rows)
+    out = ROOT / "studies" / "out"
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "three_point_bending.md").write_text(table + "\n")
+    return table
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("variants", nargs="*")
+    ap.add_argument("--report", action="store_true")
+    args = ap.parse_args()
+    variants = args.variants or sorted(p.stem for p in DECKS.glob("*.yaml"))
+    if not args.report:
+        for v in variants:
+            subprocess.run([sys.executable, "-m", "fdeck.cli", "run", str(DECKS / f"{v}.yaml"), "-o",
+                            str(RESULTS / v)], check=False)
+    print(report(variants))
+
+
+if __name__ == "__main__":
+    main()
