@@ -4,6 +4,8 @@ spec.yaml:
     requirement: one sentence saying what the case protects
     columns: {history column: {rtol: r, atol: a}}   # |run - gold| <= atol + rtol * max|gold| on every row
     summary: {key: {rtol: r, atol: a}}              # optional: scalar entries of summary.json (dotted keys)
+    agree:                                          # optional: physics of the fresh run against a closed form
+      - {column: c, reference: r, rtol: t, where: {column: [lo, hi]}}   # |c - r| <= t |r| on rows in range
 
 Gold files change only through ``fdeck regress --update`` (never as a side effect of a test run).
 """
@@ -57,6 +59,15 @@ def run_case(case: Path, update: bool = False) -> tuple[bool, str]:
         passed = bool(err <= allowed)
         ok &= passed
         lines.append(f"  {col:<30s} max |diff| {err:.3e} (allowed {allowed:.3e}) {'ok' if passed else 'FAIL'}")
+    for rule in spec.get("agree", []):
+        (wcol, (lo, hi)), = rule["where"].items()
+        rows = (run[wcol] >= lo) & (run[wcol] <= hi)
+        a, r = run[rule["column"]][rows], run[rule["reference"]][rows]
+        worst = float(np.max(np.abs(a - r) / np.abs(r))) if rows.any() else float("inf")
+        passed = worst <= rule["rtol"]
+        ok &= passed
+        lines.append(f"  {rule['column']} vs {rule['reference']} for {lo} <= {wcol} <= {hi}: worst relative "
+                     f"difference {worst:.3f} (allowed {rule['rtol']}) {'ok' if passed else 'FAIL'}")
     if spec.get("summary"):
         gold_summary = yaml.safe_load((case / "gold" / "summary.yaml").read_text())
         for key, tol in spec["summary"].items():

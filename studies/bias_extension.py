@@ -1,0 +1,77 @@
+"""Bias extension of 3WEAVE: central shear angle against the pin-jointed net, and force against clamp travel.
+
+    python studies/bias_extension.py            # runs decks/bias_extension_3weave*.yaml, then reports
+    python studies/bias_extension.py --report   # report from results/ only
+
+Writes studies/out/bias_extension.md and docs/img/bias_extension.png.
+"""
+
+from __future__ import annotations
+
+import argparse
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+CASES = {"bias_extension_3weave": "diagonal W/6 (11.78 mm edges)", "bias_extension_3weave_fine": "diagonal W/20 (3.53 mm)"}
+
+
+def report() -> str:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from fdeck.io.history import read_history
+
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(10, 4))
+    lines = ["| clamp travel [mm] | pin-jointed [deg] | " + " | ".join(f"simulated, {v} [deg]" for k, v in CASES.items()
+                                                                    if (ROOT / "results" / k / "history.csv").exists())
+             + " |"]
+    lines.append("|" + "---|" * (lines[0].count("|") - 1))
+    hist = {k: read_history(ROOT / "results" / k / "history.csv") for k in CASES
+            if (ROOT / "results" / k / "history.csv").exists()}
+    for d in (5, 10, 15, 20, 25, 30, 35, 40):
+        row = [f"{d}"]
+        first = next(iter(hist.values()))
+        row.append(f"{np.interp(d, first['clamp_travel'], first['pin_jointed_shear_angle']):.1f}")
+        for h in hist.values():
+            row.append(f"{np.interp(d, h['clamp_travel'], h['central_shear_angle']):.1f}")
+        lines.append("| " + " | ".join(row) + " |")
+    for k, h in hist.items():
+        a1.plot(h["clamp_travel"], h["central_shear_angle"], label=f"fdeck, {CASES[k]}")
+        a2.plot(h["clamp_travel"], h["reaction_GRIP_HIGH_y"], label=f"fdeck, {CASES[k]}")
+    h = next(iter(hist.values()))
+    a1.plot(h["clamp_travel"], h["pin_jointed_shear_angle"], "k--", label="pin-jointed net")
+    a1.set_xlabel("clamp travel [mm]")
+    a1.set_ylabel("central shear angle [deg]")
+    a1.legend()
+    a2.set_xlabel("clamp travel [mm]")
+    a2.set_ylabel("force [N]")
+    a2.set_yscale("log")
+    a2.legend()
+    fig.tight_layout()
+    (ROOT / "docs" / "img").mkdir(parents=True, exist_ok=True)
+    fig.savefig(ROOT / "docs" / "img" / "bias_extension.png", dpi=130)
+    table = "\n".join(lines)
+    (ROOT / "studies" / "out").mkdir(parents=True, exist_ok=True)
+    (ROOT / "studies" / "out" / "bias_extension.md").write_text(table + "\n")
+    return table
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--report", action="store_true")
+    args = ap.parse_args()
+    if not args.report:
+        for k in CASES:
+            subprocess.run([sys.executable, "-m", "fdeck.cli", "run", str(ROOT / "decks" / f"{k}.yaml"), "-o",
+                            str(ROOT / "results" / k)], check=False)
+    print(report())
+
+
+if __name__ == "__main__":
+    main()
