@@ -16,16 +16,21 @@ from fdeck.physics.tensor import sym_bound6
 from fdeck.registry import MaterialKind, register_material
 
 
-class LinearElastic(MaterialCard):
-    """Isotropic linear elastic (Saint Venant-Kirchhoff at finite strain)."""
+class Isotropic(MaterialCard):
+    """Fields of an isotropic law given by its (small-strain) Young's modulus and Poisson ratio."""
 
-    type: Literal["linear_elastic"]
-    youngs_modulus: float = Field(gt=0.0, description="Young's modulus E [MPa].")
+    youngs_modulus: float = Field(gt=0.0, description="Young's modulus E [MPa] (small-strain for hyperelastic laws).")
     poisson_ratio: float = Field(gt=-1.0, lt=0.5, description="Poisson ratio nu, -1 < nu < 0.5.")
 
 
-def pack(card: LinearElastic) -> np.ndarray:
-    """-> [lam, mu] Lame constants [MPa]."""
+class LinearElastic(Isotropic):
+    """Isotropic linear elastic (Saint Venant-Kirchhoff at finite strain)."""
+
+    type: Literal["linear_elastic"]
+
+
+def pack(card: Isotropic) -> np.ndarray:
+    """-> [lam, mu] Lame constants [MPa] of any isotropic card."""
     e, nu = card.youngs_modulus, card.poisson_ratio
     return np.array([e * nu / ((1 + nu) * (1 - 2 * nu)), e / (2 * (1 + nu))])
 

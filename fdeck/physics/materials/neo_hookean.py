@@ -7,26 +7,17 @@ kinematics (F-bar, objectivity, compression) independently of the fabric laws.
 from typing import Literal
 
 import numpy as np
-from pydantic import Field
 
-from fdeck.deck.base import MaterialCard
 from fdeck.jit import njit, njit_parallel, prange
+from fdeck.physics.materials.elastic import Isotropic, pack
 from fdeck.physics.tensor import sym_bound6
 from fdeck.registry import MaterialKind, register_material
 
 
-class NeoHookean(MaterialCard):
+class NeoHookean(Isotropic):
     """Compressible neo-Hookean hyperelastic solid."""
 
     type: Literal["neo_hookean"]
-    youngs_modulus: float = Field(gt=0.0, description="Small-strain Young's modulus E [MPa].")
-    poisson_ratio: float = Field(gt=-1.0, lt=0.5, description="Small-strain Poisson ratio nu, -1 < nu < 0.5.")
-
-
-def pack(card: NeoHookean) -> np.ndarray:
-    """-> [lam, mu] small-strain Lame constants [MPa]."""
-    e, nu = card.youngs_modulus, card.poisson_ratio
-    return np.array([e * nu / ((1 + nu) * (1 - 2 * nu)), e / (2 * (1 + nu))])
 
 
 @njit
