@@ -59,11 +59,18 @@ class Sink:
 def history_columns(problem) -> list[str]:
     cols = ["time", "dt", "kinetic_energy", "internal_energy", "strain_energy", "hourglass_energy",
             "damping_energy", "external_work", "energy_balance_error"]
+    cols += effect_energy_columns(problem)
     for name in problem.reactions:
         cols += [f"reaction_{name}_{c}" for c in "xyz"]
     for m in problem.measures:
         cols += m.columns
     return cols
+
+
+def effect_energy_columns(problem) -> list[str]:
+    """Own ledger columns of internal effects (``Effect.energy_column``), in first-appearance order."""
+    names = [e.energy_column for e in problem.effects if e.ledger == "internal" and e.energy_column]
+    return list(dict.fromkeys(names))
 
 
 class _Timer:
@@ -96,6 +103,8 @@ def _run(problem, sink: Sink, should_stop) -> Result:
     res = Result(columns=history_columns(problem))
     groups, effects = problem.groups, problem.effects
     forcing = [e for e in effects if e.ledger is not None]
+    energy_cols = effect_energy_columns(problem)
+    own = {c: [e for e in forcing if e.ledger == "internal" and e.energy_column == c] for c in energy_cols}
     constraints = [e for e in effects if e.constrains]
     X = problem.X
     n = len(X)
@@ -197,6 +206,7 @@ def _run(problem, sink: Sink, should_stop) -> Result:
                     raise RunStopped("non-finite energy (NaN or overflow in forces)", t)
                 if next_hist < len(hist_times) and t >= hist_times[next_hist] - 1e-12 * T:
                     row = [t, dt, ke, internal, se, hg + d_hg, d_damp, w_ext, err]
+                    row += [sum(e.energy() for e in own[c]) for c in energy_cols]
                     for nodes in problem.reactions.values():
                         row += reaction[nodes].sum(axis=0).tolist()
                     t0 = timer.add("integrator", t0)
