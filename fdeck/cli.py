@@ -152,7 +152,7 @@ def info(deck: Path = typer.Argument(..., help="Deck file.")):
     for plan in p.steps:
         dts = []
         for g, rho in zip(p.groups, plan.rho):
-            dts.append(plan.dt_safety * float(np.min(g.L0 / np.sqrt(g.modulus0 / rho))))
+            dts.append(plan.dt_safety * float(np.min(g.rest_dt(rho))))
         dt = min(dts)
         cycles += int(np.ceil(plan.duration / dt))
         typer.echo(f"  step {plan.name}: rest stable dt {dt:.4g} s, ~{int(np.ceil(plan.duration / dt))} cycles, "

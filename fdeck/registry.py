@@ -21,8 +21,11 @@ class MaterialKind:
         F (n_el, n_qp, 3, 3) deformation gradient; frame (n_el, 3, 3) rows = warp, weft, thickness unit vectors
         in the reference configuration; params (n_el, n_param); state (n_el, n_qp, n_state) updated in place;
         outputs P (n_el, n_qp, 3, 3) first Piola-Kirchhoff stress [MPa], psi (n_el, n_qp) energy density per
-        reference volume [MPa = mJ/mm3], modulus (n_el, n_qp) current P-wave modulus [MPa] for the stable step.
-    point(F, frame, params, state, P) -> (psi, modulus): the same at one point (3x3 arrays), for tests.
+        reference volume [MPa = mJ/mm3], modulus (n_el, n_qp, 3) current wave-modulus bounds [MPa] along the
+        three frame directions, for the stable step: the reference acoustic tensor Q(N) = N.(dP/dF).N of every unit
+        N is at most sum_i modulus_i (f_i . N)^2 (isotropic laws give one value thrice; an anisotropic law lets an
+        element pair its stiff direction with the element's own length along it, see ``hex8.element_dt``).
+    point(F, frame, params, state, P) -> (psi, m1, m2, m3): the same at one point (3x3 arrays), for tests.
     n_state: history variables per integration point (0 for hyperelastic laws).
     diagnostics: names of the per-point output fields returned by ``diagnose``.
     diagnose(F, frame, params) -> float64 array (len(diagnostics),) at one point, or None.

@@ -178,7 +178,7 @@ def plan_steps(deck: Deck, groups: list, physical_mass: np.ndarray) -> list[Step
             rho = [r * ms.factor for r in rho]
         elif ms is not None:
             for i, g in enumerate(groups):
-                dt0 = g.L0 / np.sqrt(g.modulus0 / g.rho)  # rest stable step per element
+                dt0 = g.rest_dt(g.rho)  # rest stable step per element
                 rho[i] = g.rho * np.maximum(1.0, (ms.target_dt / (s.dt_safety * dt0)) ** 2)
         added = (nodal_mass(groups, len(physical_mass), rho).sum() - total) / total
         alpha = s.damping.mass_proportional if s.damping else 0.0

@@ -37,7 +37,8 @@ def pack(card: Isotropic) -> np.ndarray:
 
 @njit
 def point(F, frame, params, state, P):
-    """First Piola-Kirchhoff stress into P (3, 3); returns (psi [MPa], P-wave modulus [MPa]).
+    """First Piola-Kirchhoff stress into P (3, 3); returns (psi [MPa], m1, m2, m3) with m_i the P-wave modulus
+    bound [MPa] along each frame direction (isotropic: three equal values).
 
     Written with scalars: no allocation per point (allocations dominate the cost of small kernels and contend
     between threads).
@@ -61,7 +62,8 @@ def point(F, frame, params, state, P):
     # Reference acoustic tensor A = dP/dF: delta_ik S_JL + F_iI C_IJKL F_kK, bounded by
     # max eig(S) + (lam + 2 mu) max eig(F^T F) (eigenvalues bounded by Gershgorin); exact (lam + 2 mu) at rest.
     c_max = 1.0 + 2.0 * sym_bound6(e00, e11, e22, e01, e12, e02)
-    return psi, max(0.0, sym_bound6(s00, s11, s22, s01, s12, s02)) + (lam + 2.0 * mu) * c_max
+    m = max(0.0, sym_bound6(s00, s11, s22, s01, s12, s02)) + (lam + 2.0 * mu) * c_max
+    return psi, m, m, m
 
 
 @njit_parallel
@@ -69,7 +71,8 @@ def evaluate(F, frame, params, state, P, psi, modulus):
     """Array kernel; shapes in ``fdeck.registry.MaterialKind``."""
     for e in prange(F.shape[0]):
         for q in range(F.shape[1]):
-            psi[e, q], modulus[e, q] = point(F[e, q], frame[e], params[e], state[e, q], P[e, q])
+            psi[e, q], modulus[e, q, 0], modulus[e, q, 1], modulus[e, q, 2] = point(
+                F[e, q], frame[e], params[e], state[e, q], P[e, q])
 
 
 register_material(MaterialKind("linear_elastic", LinearElastic, pack, evaluate, point))

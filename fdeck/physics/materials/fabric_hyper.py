@@ -455,7 +455,8 @@ def _row(P, r, b1, b2, b3, frame):
 
 @njit
 def point(F, frame, params, state, P):
-    """First Piola-Kirchhoff stress into P (3, 3) [MPa]; returns (psi [MPa], P-wave modulus [MPa]).
+    """First Piola-Kirchhoff stress into P (3, 3) [MPa]; returns (psi [MPa], m1, m2, m3) with m_i the wave-modulus
+    bound [MPa] along the reference fibre direction f_i (see ``_modulus``).
 
     F (3, 3) deformation gradient, frame (3, 3) rows f1, f2, f3 (reference unit vectors), params (N_PARAM,).
     Scalars only: no allocation per point.
@@ -497,25 +498,28 @@ def point(F, frame, params, state, P):
     P[2, 1] += gc * (F[0, 2] * F[1, 0] - F[0, 0] * F[1, 2])
     P[2, 2] += gc * (F[0, 0] * F[1, 1] - F[0, 1] * F[1, 0])
 
-    return pw + pf + pc + ps + p1 + p2, _modulus(g, q, J, iD, s, t1, t2, (hw, hf, hc, hs, h1, h2),
-                                                 (dw, df, dc, ds, d1, d2))
+    m1, m2, m3 = _modulus(g, q, J, iD, s, t1, t2, (hw, hf, hc, hs, h1, h2), (dw, df, dc, ds, d1, d2))
+    return pw + pf + pc + ps + p1 + p2, m1, m2, m3
 
 
 @_inline
 def _modulus(g, q, J, iD, s, t1, t2, h, d):
-    """Upper bound [MPa] of the largest eigenvalue of the reference acoustic tensor over unit directions N.
+    """Directional wave-modulus bounds (m1, m2, m3) [MPa] along the reference fibre directions f1, f2, f3.
 
-    g, q, J, iD from _kinematics; h, d = (psi_k'', psi_k') of the six modes.
-    For dF = m x N (|m| = |N| = 1): d2psi = sum_k psi_k'' (dI_k)^2 + psi_k' d2I_k, and dI_k = m . v_k(N).
-    First part: max over m is at most sum_k max(psi_k'', 0) |v_k|^2 = beta.H.beta with beta_i = f_i . N and H the
-    fibre-frame 3x3 matrix below (exact per mode; the sum over modes is the trace bound of a PSD matrix); its largest
-    eigenvalue is bounded by Gershgorin. Second part: sum_k |psi_k'| max|d2I_k|. Exact at rest for a single mode,
-    and ~1 % above the true value under fibre tension (psi'' >> psi'). Assumes an orthonormal frame (|beta| = 1).
+    g, q, J, iD from _kinematics; h, d = (psi_k'', psi_k') of the six modes. For a plane wave dF = m x N (unit m,
+    N; beta_i = f_i . N) they bound the reference acoustic tensor: m.Q(N).m <= sum_i m_i beta_i^2, so that an
+    element can pair each direction's stiffness with its own length along f_i (``hex8.element_dt``).
+    d2psi = sum_k psi_k'' (dI_k)^2 + psi_k' d2I_k with dI_k = m . v_k(N). First part: at most
+    sum_k max(psi_k'', 0) |v_k|^2 = beta.H.beta with H the fibre-frame 3x3 matrix below (exact per mode), and
+    beta.H.beta <= sum_i beta_i^2 (H_ii + sum_j |H_ij|) (Gershgorin rows, from 2|beta_i beta_j| <= beta_i^2 +
+    beta_j^2). Second part: sum_k |psi_k'| max|d2I_k|, added to every direction. The largest of the three bounds
+    the acoustic tensor over all directions; exact at rest for a single mode, and ~1 % above the true value under
+    fibre tension (psi'' >> psi'). Assumes an orthonormal frame (|beta| = 1).
     """
     g11, g22, g33, g12, g13, g23 = g
     i11, i22, i33 = q[0] * q[0], q[1] * q[1], q[2] * q[2]
     q12, q13, q23 = q[0] * q[1], q[0] * q[2], q[1] * q[2]
-    # stretch: v = a_i beta_i / I4i, |v|^2 = beta_i^2 / I4i
+    # stretch: de_i = a_i . y_i / I4i, |w|^2 = 1 / I4i
     H11 = max(h[0], 0.0) * i11
     H22 = max(h[1], 0.0) * i22
     # shear s = a1^.a2^: |v|^2 = (1 - s^2)(beta1^2/I41 + beta2^2/I42 - 2 s beta1 beta2/sqrt(I41 I42)); same for t1, t2
@@ -523,9 +527,9 @@ def _modulus(g, q, J, iD, s, t1, t2, h, d):
     H11 += (ks + k1) * i11
     H22 += (ks + k2) * i22
     H33 = (k1 + k2) * i33
-    H12 = -ks * s * q12
-    H13 = -k1 * t1 * q13
-    H23 = -k2 * t2 * q23
+    H12 = ks * abs(s) * q12
+    H13 = k1 * abs(t1) * q13
+    H23 = k2 * abs(t2) * q23
     # compaction c = ln h (h thickness stretch normal to the fibre plane): v = n (beta3 - x1 beta1 - x2 beta2) / h,
     # where a3 = h n + x1 a1 + x2 a2, and 1/h^2 = D / J^2
     x1 = (g22 * g13 - g12 * g23) * iD
@@ -536,10 +540,9 @@ def _modulus(g, q, J, iD, s, t1, t2, h, d):
     H11 += kc * x1 * x1
     H22 += kc * x2 * x2
     H33 += kc
-    H12 += kc * x1 * x2
-    H13 -= kc * x1
-    H23 -= kc * x2
-    first = max(H11 + abs(H12) + abs(H13), H22 + abs(H12) + abs(H23), H33 + abs(H13) + abs(H23))
+    H12 += kc * abs(x1 * x2)
+    H13 += kc * abs(x1)
+    H23 += kc * abs(x2)
     # second variations: |d2e_i| <= 1/I4i; |d2 sin(a_i, a_j)| <= K2A max(1/I4i, 1/I4j) + 1/sqrt(I4i I4j);
     # |d2c| <= tr(C^-1) + (I41 + I42)/D (from ln J and ln D); tr(C^-1) = tr(cof G)/det G, det G = J^2
     trcinv = (g22 * g33 - g23 * g23 + g11 * g33 - g13 * g13 + D) * iJ2
@@ -547,7 +550,7 @@ def _modulus(g, q, J, iD, s, t1, t2, h, d):
               + abs(d[3]) * (_K2A * max(i11, i22) + q12)
               + abs(d[4]) * (_K2A * max(i11, i33) + q13)
               + abs(d[5]) * (_K2A * max(i22, i33) + q23))
-    return first + second
+    return H11 + H12 + H13 + second, H22 + H12 + H23 + second, H33 + H13 + H23 + second
 
 
 @njit_parallel
@@ -555,7 +558,8 @@ def evaluate(F, frame, params, state, P, psi, modulus):
     """Array kernel; shapes in ``fdeck.registry.MaterialKind``."""
     for e in prange(F.shape[0]):
         for q in range(F.shape[1]):
-            psi[e, q], modulus[e, q] = point(F[e, q], frame[e], params[e], state[e, q], P[e, q])
+            psi[e, q], modulus[e, q, 0], modulus[e, q, 1], modulus[e, q, 2] = point(
+                F[e, q], frame[e], params[e], state[e, q], P[e, q])
 
 
 # ----------------------------------------------------------------------------------------------------------------

@@ -22,7 +22,8 @@ class NeoHookean(Isotropic):
 
 @njit
 def point(F, frame, params, state, P):
-    """First Piola-Kirchhoff stress into P (3, 3); returns (psi [MPa], P-wave modulus [MPa]).
+    """First Piola-Kirchhoff stress into P (3, 3); returns (psi [MPa], m1, m2, m3) with m_i the P-wave modulus
+    bound [MPa] along each frame direction (isotropic: three equal values).
 
     P = mu F + (lam ln J - mu) F^-T, with F^-T = cof(F) / J built in place in P (no allocation per point).
     """
@@ -56,7 +57,8 @@ def point(F, frame, params, state, P):
     psi = 0.5 * mu * (i1 - 3.0) - mu * logJ + 0.5 * lam * logJ * logJ
     # Reference acoustic tensor of A = dP/dF = mu I + (mu - lam ln J) F^-T(x)F^-1 + lam F^-T x F^-T is bounded by
     # mu + (|mu - lam ln J| + lam) / sigma_min(F)^2; exact (lam + 2 mu) at rest.
-    return psi, mu + (abs(mu - lam * logJ) + lam) * sym_bound6(b00, b11, b22, b01, b12, b02)
+    m = mu + (abs(mu - lam * logJ) + lam) * sym_bound6(b00, b11, b22, b01, b12, b02)
+    return psi, m, m, m
 
 
 @njit_parallel
@@ -64,7 +66,8 @@ def evaluate(F, frame, params, state, P, psi, modulus):
     """Array kernel; shapes in ``fdeck.registry.MaterialKind``."""
     for e in prange(F.shape[0]):
         for q in range(F.shape[1]):
-            psi[e, q], modulus[e, q] = point(F[e, q], frame[e], params[e], state[e, q], P[e, q])
+            psi[e, q], modulus[e, q, 0], modulus[e, q, 1], modulus[e, q, 2] = point(
+                F[e, q], frame[e], params[e], state[e, q], P[e, q])
 
 
 register_material(MaterialKind("neo_hookean", NeoHookean, pack, evaluate, point))
