@@ -31,4 +31,15 @@ def evaluate(checks, history: np.ndarray, columns: list[str], duration: float) -
         value = float(col["hourglass_energy"][-1] / max(ie[-1], 1e-300))
         out.append(dict(name="hourglass", value=value, limit=c.max_ratio, passed=bool(value <= c.max_ratio),
                         what="hourglass / internal energy at the end"))
+    for lim in checks.limits:
+        rows = col["time"] >= lim.after * duration
+        vals = col[lim.measure][rows]
+        lo, hi = (float(vals.min()), float(vals.max())) if len(vals) else (np.nan, np.nan)
+        for bound, value, ok in (("min", lo, lim.min is None or lo >= lim.min),
+                                 ("max", hi, lim.max is None or hi <= lim.max)):
+            limit = getattr(lim, bound)
+            if limit is not None:
+                out.append(dict(name=f"{lim.measure}_{bound}", value=value, limit=limit, passed=bool(ok),
+                                what=f"{'smallest' if bound == 'min' else 'largest'} {lim.measure} after "
+                                     f"{lim.after:g} of the run"))
     return out

@@ -6,6 +6,8 @@ spec.yaml:
     summary: {key: {rtol: r, atol: a}}              # optional: scalar entries of summary.json (dotted keys)
     agree:                                          # optional: physics of the fresh run against a closed form
       - {column: c, reference: r, rtol: t, where: {column: [lo, hi]}}   # |c - r| <= t |r| on rows in range
+    exit_code: 0                                    # optional (default 0): the run's exit code, so the deck's own
+                                                    # checks (energy balance, quasi-static) must pass as well
 
 Gold files change only through ``fdeck regress --update`` (never as a side effect of a test run).
 """
@@ -46,8 +48,11 @@ def run_case(case: Path, update: bool = False) -> tuple[bool, str]:
             return True, f"{case.name}: gold updated ({summary['cycles']} cycles, exit {code})"
         run, ref = read_history(out / "history.csv"), read_history(gold / "history.csv")
     lines, ok = [f"{case.name}: {spec['requirement']}"], True
-    if code not in (0, 3):
-        return False, f"{case.name}: run failed with exit code {code}: {summary['message']}"
+    expected = spec.get("exit_code", 0)
+    if code != expected:
+        failed = [c["name"] for c in summary["checks"] if not c["passed"]]
+        return False, (f"{case.name}: exit code {code}, expected {expected}: {summary['message'] or ''} "
+                       f"failed checks {failed}")
     for col, tol in spec.get("columns", {}).items():
         a, g = run[col], ref[col]
         if len(a) != len(g):

@@ -95,6 +95,26 @@ def test_failed_check_exits_3_and_names_it(tmp_path):
     assert r.stdout.strip().splitlines()[-1] == "CHECK FAILED: energy_balance"
 
 
+def test_measure_limits_decide_pass_and_fail(tmp_path):
+    """Requirement: `checks.limits` bounds a recorded measure: inside passes (exit 0), outside fails (exit 3) naming
+    the bound, with the measured extreme and the limit in summary.json; an unknown measure is a located error."""
+    base = (DECKS / "wave_bar.yaml").read_text().replace(
+        "  reactions: [xmin]", "  reactions: [xmin]\n  measures: [{type: node_displacement, name: push, nodes: xmax, "
+        "component: x}]")
+    # the pushed end moves 1000 mm/s x (60 - 1) us = 0.059 mm towards -x: -0.06 < push < 0
+    for limit, code in (("{measure: push, min: -0.06, max: 0.0}", 0), ("{measure: push, min: -0.05}", 3)):
+        deck = tmp_path / "limited.yaml"
+        deck.write_text(base.replace("checks:", f"checks:\n  limits: [{limit}]"))
+        r = fdeck("run", deck, "-o", tmp_path / "o")
+        assert r.returncode == code, r.stdout + r.stderr
+    assert r.stdout.strip().splitlines()[-1] == "CHECK FAILED: push_min"
+    check = json.loads((tmp_path / "o" / "summary.json").read_text())["checks"][-1]
+    assert check["limit"] == -0.05 and -0.06 < check["value"] < -0.05 and not check["passed"]
+    deck.write_text(base.replace("checks:", "checks:\n  limits: [{measure: psuh, max: 1}]"))
+    r = fdeck("validate", deck)
+    assert r.returncode == 2 and "checks.limits[0].measure" in r.stderr and "did you mean 'push'" in r.stderr
+
+
 def test_numerical_failure_exits_4_names_element_and_keeps_frames(tmp_path):
     """Requirement: an inverted element stops the run at once (exit 4) naming the element and time, with the
     frames written so far kept."""

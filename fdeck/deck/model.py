@@ -227,10 +227,28 @@ class HourglassCheck(Card):
     max_ratio: float = Field(0.05, gt=0, description="Limit of hourglass / internal energy at the end.")
 
 
+class Limit(Card):
+    """Bounds on a recorded measure (a column of `output.measures`), e.g. the largest shear angle below locking."""
+
+    measure: str = Field(description="Name of a measure in `output.measures`.")
+    min: float | None = Field(None, description="Smallest allowed value (in the measure's unit).")
+    max: float | None = Field(None, description="Largest allowed value (in the measure's unit).")
+    after: float = Field(0.0, ge=0, lt=1, description="Checked after this fraction of the run.")
+
+    @model_validator(mode="after")
+    def _a_bound(self):
+        if self.min is None and self.max is None:
+            raise ValueError("give `min`, `max` or both")
+        if self.min is not None and self.max is not None and self.min > self.max:
+            raise ValueError(f"min {self.min} is above max {self.max}")
+        return self
+
+
 class Checks(Card):
     quasi_static: QuasiStatic | None = None
     energy_balance: EnergyBalance | None = None
     hourglass: HourglassCheck | None = None
+    limits: list[Limit] = Field(default_factory=list, description="Bounds on measures; a run outside fails (exit 3).")
 
 
 # -- the deck -----------------------------------------------------------------------------------------------
@@ -267,6 +285,10 @@ def cross_reference_problems(deck: Deck) -> list[tuple[tuple, str, str]]:
             amp = getattr(c, "amplitude", None)
             if amp is not None and amp not in names:
                 out.append(((group, i, "amplitude"), _unknown("amplitude", amp, names), "error"))
+    measures = [m.name for m in deck.output.measures]
+    for i, lim in enumerate(deck.checks.limits):
+        if lim.measure not in measures:
+            out.append((("checks", "limits", i, "measure"), _unknown("measure", lim.measure, measures), "error"))
     used = {s.material for s in deck.sections}
     for name in deck.materials:
         if name not in used:
