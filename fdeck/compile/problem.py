@@ -188,6 +188,7 @@ def plan_steps(deck: Deck, groups: list, physical_mass: np.ndarray) -> list[Step
 
 def compile_deck(deck: Deck, base: Path = Path(".")) -> Problem:
     """Build every array the engine needs. Raises CompileError listing every geometric or set problem."""
+    from fdeck.physics.effects import bulk_viscosity
     from fdeck.physics.effects.damping import MassDamping
 
     mesh = load_mesh(deck, base)
@@ -234,5 +235,8 @@ def compile_deck(deck: Deck, base: Path = Path(".")) -> Problem:
     if any(s.alpha > 0 for s in steps):  # built only when a step asks for it
         damping = MassDamping(mass.copy())
         effects.append(damping)
+    viscosity = bulk_viscosity.build(deck.steps, groups, np.cumsum([s.duration for s in steps]))
+    if viscosity is not None:
+        effects.append(viscosity)
     return Problem(deck, mesh.X, mesh.cells, groups, effects, mesh.node_sets, mass, steps, reactions, damping,
                    measures)

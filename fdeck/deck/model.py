@@ -196,12 +196,22 @@ class Damping(Card):
                                      "angular frequency w critically.")
 
 
+class BulkViscosity(Card):
+    """Viscous pressure on the volumetric strain rate of solid elements (Abaqus *BULK VISCOSITY defaults)."""
+
+    linear: float = Field(0.06, ge=0, le=1, description="b1: fraction of critical damping of each element's "
+                          "fastest mode [-].")
+    quadratic: float = Field(1.2, ge=0, le=10, description="b2: quadratic coefficient, compression only [-].")
+
+
 class Step(Card):
     name: str = "step"
     duration: float = Field(gt=0, description="Step duration [s].")
     dt_safety: float = Field(0.9, gt=0, le=1.0, description="Time step = dt_safety x smallest element step.")
     mass_scaling: MassScaling | None = None
     damping: Damping | None = None
+    bulk_viscosity: BulkViscosity | None = Field(None, description="Bulk viscosity in this step ({} for the "
+                                                 "defaults b1 = 0.06, b2 = 1.2); none when absent.")
     max_cycles: int | None = Field(None, ge=1, description="Stop the step after this many cycles (a guard).")
 
 
