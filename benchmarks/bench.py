@@ -7,6 +7,7 @@ cached start-up of `fdeck run` on a small deck. Writes benchmarks/results.json.
 
     python benchmarks/bench.py            # full run (about 10 minutes on 2 cores)
     python benchmarks/bench.py --quick    # 10 k elements only
+    python benchmarks/bench.py --report   # markdown table of benchmarks/results.json (what the README shows)
 """
 
 from __future__ import annotations
@@ -90,11 +91,38 @@ def compile_times() -> dict:
     return out
 
 
+def report(result: dict) -> str:
+    """Markdown: one row per formulation x material x size, 1 and 2 threads side by side, and the start-up times."""
+    rows = {}
+    for r in result["runs"]:
+        rows.setdefault((r["formulation"], r["material"], r["elements"]), {})[r["threads"]] = r
+    lines = ["| formulation | material | elements | us/element-cycle, 1 thread | 2 threads | speed-up | "
+             "bytes/element |", "|---|---|---|---|---|---|---|"]
+    for (form, mat, n), by in sorted(rows.items(), key=lambda kv: (kv[0][2], kv[0][0], kv[0][1])):
+        one, two = by.get(1), by.get(2)
+        t1 = f"{one['us_per_element_cycle']:.3f}" if one else "-"
+        t2 = f"{two['us_per_element_cycle']:.3f}" if two else "-"
+        sp = f"{one['us_per_element_cycle'] / two['us_per_element_cycle']:.2f}" if one and two else "-"
+        mem = (one or two)["bytes_per_element"]
+        lines.append(f"| {form} | {mat} | {n} | {t1} | {t2} | {sp} | {mem:.0f} |")
+    s = result.get("startup", {})
+    if s:
+        lines.append("")
+        lines.append(f"Start-up of `fdeck run` on the wave-bar deck: {s['cold_run_s']:.1f} s with an empty numba cache "
+                     f"({s['compile_time_s']:.1f} s of compilation), {s['cached_run_s']:.1f} s cached; "
+                     f"`fdeck validate` {s['cached_validate_s']:.1f} s.")
+    return "\n".join(lines)
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--report", action="store_true", help="print the markdown table of results.json and exit")
     ap.add_argument("--one", nargs=5, help=argparse.SUPPRESS)  # form mat nx,ny,nz cycles threads (subprocess)
     args = ap.parse_args()
+    if args.report:
+        print(report(json.loads((HERE / "results.json").read_text())))
+        return
     if args.one:
         form, mat, div, cycles, threads = args.one
         print(json.dumps(measure(form, mat, tuple(map(int, div.split(","))), int(cycles), int(threads))))
