@@ -34,8 +34,10 @@ Kinematics (per section, in the reference fibre frame f1 warp, f2 weft, f3 thick
   two sides cancels for a period-2 zig-zag (both side angles have opposite signs), which is exactly the spurious
   mode to suppress; per hinge the zig-zag costs (2 alpha / L)^2 at every hinge.
 * Free edges: an element without a neighbour on one side has no hinge there, so the moment vanishes at a free
-  edge, as at the free end of a beam; its half-volume on that side stores no bending energy. Elements outside the
-  section (another section, another element group) are not neighbours: the effect works on its own group only.
+  edge, as at the free end of a beam; its half-volume on that side stores no bending energy. The same holds at a
+  clamped face: fixing one node plane leaves the first element's fibre tangent free to turn, so to hold the fibres'
+  rotation too, fix the nodes of the first element column (two node planes). Elements outside the section
+  (another section, another element group) are not neighbours: the effect works on its own group only.
 * The mesh must be fibre-aligned: every element needs faces whose normals lie within ``ALIGN_DEG`` of +-f_i for
   the bending families and a natural axis within ``ALIGN_DEG`` of f3; otherwise a CompileError names the elements.
 
