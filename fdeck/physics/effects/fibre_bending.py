@@ -24,12 +24,13 @@ Kinematics (per section, in the reference fibre frame f1 warp, f2 weft, f3 thick
       chi = 2 asin(s / 2) / L - chi_0,   s = nbar . (u_r - u_l),   u = t_i / |t_i|,   nbar = unit(n_l + n_r),
   i.e. the rotation of the fibre about the in-plane axis normal to it (out-of-plane bending; in-plane fibre
   bending and twist are not modelled), exact for a circular arc. chi_0 is its value in the reference
-  configuration (zero on a flat blank). Rigid motions leave every chi unchanged; any homogeneous deformation
-  gives equal tangents, hence chi = chi_0.
+  configuration (zero on a flat blank). chi > 0 when the fibre turns towards the +f3 side (centre of curvature
+  on that side). Rigid motions leave every chi unchanged; any homogeneous deformation gives equal tangents, hence
+  chi = chi_0.
 * Energy: W = sum over hinges and levels of w(chi) V_h / T, with V_h = (V_l,a + V_r,a) / 2 (V_e,a the reference
   volume of the element's half on the level's side): every element lends half of each level's volume to each of
   its two hinges per family, so a uniformly bent sheet stores w(chi) per unit area. The forces are the exact
-  derivative dW/dx (chain rule through s, nbar and both normals, see ``_hinges``), so the energy ledger closes.
+  derivative dW/dx (chain rule through s, nbar and both normals, see ``hinges``), so the energy ledger closes.
 * Why hinges and not one constant curvature per element: the constant curvature of an element averaged over its
   two sides cancels for a period-2 zig-zag (both side angles have opposite signs), which is exactly the spurious
   mode to suppress; per hinge the zig-zag costs (2 alpha / L)^2 at every hinge.
@@ -44,14 +45,14 @@ Kinematics (per section, in the reference fibre frame f1 warp, f2 weft, f3 thick
 Stable step: the bending stiffness enters the time step. For each hinge-level the Gauss-Newton stiffness is
 k g g^T with k = (M'(chi) + |M| L) V_h / T and g = dchi/dx; the geometric part M d2chi/dx2 is smaller by about
 |M| L / M' (the hinge angle for a linear law) and is covered by the |M| L term. A block Gershgorin bound of
-M^-1 K (lumped masses) gives omega^2 <= max_n (1/m_n) sum_h k_h |g_h,n| sum_m |g_h,m|, exact for the zig-zag of a
-uniform strip. Per element, the largest bending omega_b^2 of its nodes is added to the element's own
-omega_g = 2 / dt_group (the two stiffnesses add, so do their squared frequencies), and the effect reports
-min_e 2 / sqrt(omega_b^2 + omega_g^2).
+M^-1 K (lumped masses) gives omega^2 <= max_n (1/m_n) sum_h k_h |g_h,n| sum_m |g_h,m|: exact for the zig-zag of a
+uniform 1-D chain, 0.8 of the exact critical step on the plates of the tests. Per element, the largest bending
+omega_b^2 of its nodes is added to the element's own omega_g = 2 / dt_group (the two stiffnesses add, so do
+their squared frequencies), and the effect reports min_e 2 / sqrt(omega_b^2 + omega_g^2).
 
 References (formulations used, by reference): E. Onate, F. Zarate, Rotation-free triangular plate and shell
-elements, IJNME 47 (2000) (BST: curvature from neighbouring elements' positions); F.G. Flores, E. Onate, rotation-free
-shell triangles for large strains, IJNME (2005); E. Grinspun et al., Discrete shells, SCA 2003 (bending energy per
+elements, IJNME 47 (2000) (BST: curvature from neighbouring elements' positions); F.G. Flores and E. Onate's
+large-strain extensions of the BST triangle (2005); E. Grinspun et al., Discrete shells, SCA 2003 (bending energy per
 hinge from the angle across shared edges); P. Boisse, S. Mathieu, N. Hamila, ECCM17 2016 [B] and S. Mathieu et al.
 (2015, 2016): local fibre bending stiffness for 3D interlocks on hexahedra, two levels through the thickness.
 
@@ -138,9 +139,9 @@ class FibreBending(Card):
     `bending_energy`; its stiffness enters the stable time step."""
 
     type: Literal["fibre_bending"]
-    thickness: float = Field(gt=0.0, description="Thickness T of the fabric specimen whose moment per unit width "
-                             "M(chi) the laws give [mm]; the energy density is int M dchi / T, so a sheet of "
-                             "thickness T bent to chi stores int M dchi per unit area.")
+    thickness: FiniteFloat = Field(gt=0.0, description="Thickness T of the fabric specimen whose moment per unit "
+                                   "width M(chi) the laws give [mm]; the energy density is int M dchi / T, so a "
+                                   "sheet of thickness T bent to chi stores int M dchi per unit area.")
     warp: BendingLaw | None = Field(None, description="Moment law of warp fibres (curvature along warp); "
                                     "leave out if warp does not bend.")
     weft: BendingLaw | None = Field(None, description="Moment law of weft fibres (curvature along weft); "
