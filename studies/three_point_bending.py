@@ -4,8 +4,9 @@ buys (spurious-mode indicator, end rise) against what it costs (wall time, us pe
     python studies/three_point_bending.py [VARIANT ...]   # default: every deck in decks/three_point_bending/
     python studies/three_point_bending.py --report        # table + pictures from existing results only
 
-Results go to results/three_point_bending/<variant>/; the table to studies/out/three_point_bending.md and the
-side views (half model mirrored about mid-span, final frame) to docs/img/three_point_bending_<variant>.png.
+Results go to results/three_point_bending/<variant>/; the table to studies/out/three_point_bending.md (rows of
+variants not run this time are kept, so the 3 mm and 1 mm variants can be run separately) and the side views
+(half model mirrored about mid-span, final frame) to docs/img/three_point_bending_<variant>.png.
 """
 
 from __future__ import annotations
@@ -47,24 +48,35 @@ def side_view(variant: str, out: Path) -> None:
     plt.close(fig)
 
 
+HEADER = ["| variant | elements | spurious-mode indicator [mm] | end rise [mm] | energy balance | wall [s] | "
+          "us / element-cycle |", "|---|---|---|---|---|---|---|"]
+
+
+def previous_rows(table: Path) -> dict[str, str]:
+    """variant -> its row in an existing table (empty if there is none)."""
+    if not table.exists():
+        return {}
+    rows = [r for r in table.read_text().splitlines()[len(HEADER):] if r.startswith("| ")]
+    return {r.split("|")[1].strip(): r for r in rows}
+
+
 def report(variants: list[str]) -> str:
-    rows = ["| variant | elements | spurious-mode indicator [mm] | end rise [mm] | energy balance | wall [s] | "
-            "us / element-cycle |", "|---|---|---|---|---|---|---|"]
     img = ROOT / "docs" / "img"
     img.mkdir(parents=True, exist_ok=True)
+    out = ROOT / "studies" / "out"
+    out.mkdir(parents=True, exist_ok=True)
+    rows = previous_rows(out / "three_point_bending.md")
     for v in variants:
         f = RESULTS / v / "summary.json"
         if not f.exists():
             continue
         s = json.loads(f.read_text())
         bal = next((c["value"] for c in s["checks"] if c["name"] == "energy_balance"), float("nan"))
-        rows.append(f"| {v} | {s['elements']} | {s['measures']['spurious_mode_indicator']:.4f} | "
-                    f"{s['measures']['end_rise']:.2f} | {bal:.1e} | {s['wall_time']:.0f} | "
-                    f"{s['us_per_element_cycle']:.2f} |")
+        rows[v] = (f"| {v} | {s['elements']} | {s['measures']['spurious_mode_indicator']:.4f} | "
+                   f"{s['measures']['end_rise']:.2f} | {bal:.1e} | {s['wall_time']:.0f} | "
+                   f"{s['us_per_element_cycle']:.2f} |")
         side_view(v, img / f"three_point_bending_{v}.png")
-    table = "\n".join(rows)
-    out = ROOT / "studies" / "out"
-    out.mkdir(parents=True, exist_ok=True)
+    table = "\n".join(HEADER + list(rows.values()))
     (out / "three_point_bending.md").write_text(table + "\n")
     return table
 
