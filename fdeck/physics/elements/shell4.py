@@ -539,15 +539,19 @@ def element_dt(modulus, wz, fz, L0, inv_len2, C, rho, dt_e):
     for e in prange(L0.shape[0]):
         M1 = 0.0
         M2 = 0.0
+        M3 = 0.0
         for g in range(4):
             s1 = 0.0
             s2 = 0.0
+            s3 = 0.0
             for l in range(wz.shape[0]):
                 s1 += wz[l] * fz[e, l] * modulus[e, g, l, 0]
                 s2 += wz[l] * fz[e, l] * modulus[e, g, l, 1]
+                s3 += wz[l] * fz[e, l] * modulus[e, g, l, 2]
             M1 = max(M1, s1)
             M2 = max(M2, s2)
-        lo = min(M1, M2)
+            M3 = max(M3, s3)
+        lo = min(M1, M2, M3)
         s = lo / (L0[e] * L0[e]) + max((M1 - lo) * inv_len2[e, 0], (M2 - lo) * inv_len2[e, 1])
         den = 4.0 * s + C[e]
         dt_e[e] = 2.0 * math.sqrt(rho[e] / den) if den > 0.0 else np.inf
@@ -746,8 +750,8 @@ class ShellGroup:
 
     def _s(self, M):
         """s (n_el,) of ``element_dt`` from per-point moduli M (n_el, 4, 2 or 3) [MPa]."""
-        M1, M2 = M[:, :, 0].max(axis=1), M[:, :, 1].max(axis=1)
-        lo = np.minimum(M1, M2)
+        M1, M2, M3 = M[:, :, 0].max(axis=1), M[:, :, 1].max(axis=1), M[:, :, 2].max(axis=1)
+        lo = np.minimum(np.minimum(M1, M2), M3)
         return lo / self.L0**2 + np.maximum((M1 - lo) * self.inv_len2[:, 0], (M2 - lo) * self.inv_len2[:, 1])
 
     # -- per cycle -------------------------------------------------------------------------------------
