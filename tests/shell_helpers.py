@@ -50,16 +50,18 @@ def linear_fabric(E1, E2=None, G=0.3, density=1e-9):
                 shear={"curve": [[0, 0], [60, G * math.pi / 3]], "locking_angle": 80, "locking_modulus": G})
 
 
-def make(section: str, X, conn, cell_type="quad", mat=LINEAR, orientation=None):
+def make(section: str, X, conn, cell_type="quad", mat=LINEAR, orientation=None, fields=None):
     """(group, state): a shell group of one section on (X, conn) with its reference directors, bound to a
-    minimal rotational state (``state.d`` the directors the group reads, ``state.m_int`` its moments)."""
+    minimal rotational state (``state.d`` the directors the group reads, ``state.m_int`` its moments).
+    ``section``: a key of SECTIONS, or a formulation name with its card ``fields``."""
     kind = MATERIALS["fabric_membrane"]
     card = kind.card(**mat)
     p = kind.pack(card)
     n = len(conn)
     form = "ts" if section.startswith("ts") else section
     extra = {} if orientation is None else {"orientation": orientation}
-    sc = FORMULATIONS[form].card(formulation=form, material="m", **SECTIONS[section], **extra)
+    fields = SECTIONS[section] if fields is None else fields
+    sc = FORMULATIONS[form].card(formulation=form, material="m", **fields, **extra)
     g = ShellGroup("g", sc, X, conn, np.arange(1, n + 1), kind, np.broadcast_to(p, (n, len(p))),
                    np.full(n, card.density), cell_type)
     g.section_index = 0

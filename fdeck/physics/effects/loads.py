@@ -59,7 +59,9 @@ def build_nodal_force(card, ctx):
 
 
 class NodalMoment(Card):
-    """Concentrated moments on the shell nodes of a set [N mm], fixed in direction (not following the rotation)."""
+    """Concentrated moments on the shell nodes of a set [N mm], fixed in direction (not following the rotation).
+    Only the part normal to each node's current director acts: a shell node has no drilling stiffness, so a
+    component about the director could only spin it (it does no work on the director)."""
 
     type: Literal["nodal_moment"]
     nodes: str = Field(description="Node set name (its nodes with rotations, i.e. shell nodes, are loaded).")
@@ -83,7 +85,9 @@ class Moment(Effect):
         self.rot = rotations
 
     def add_force(self, t, x, v, f):
-        self.rot.m_ext[self.nodes] += self.amplitude(t) * self.per_node
+        m = self.amplitude(t) * self.per_node
+        d = self.rot.d[self.nodes]
+        self.rot.m_ext[self.nodes] += m - np.einsum("ni,ni->n", m, d)[:, None] * d
 
 
 def build_nodal_moment(card, ctx):
