@@ -63,9 +63,10 @@ class Prescribed(Effect):
         self.name, self.nodes, self.dofs = name, nodes, np.array(dofs)
         self.value, self.amplitude, self.mode = value, amplitude, mode
         self.X = X[nodes][:, self.dofs]
+        self.idx = np.ix_(self.nodes, self.dofs)  # built once: np.ix_ per call cost ~10 us a constraint a cycle
 
     def constrain(self, t_next, dt, x, v):
-        idx = np.ix_(self.nodes, self.dofs)
+        idx = self.idx
         if self.mode == "fixed":
             v[idx] = 0.0
         elif self.mode == "velocity":
@@ -86,6 +87,7 @@ class PrescribedRotation(Effect):
         self.name, self.nodes, self.axes = name, nodes, np.array(axes)
         self.value, self.amplitude, self.mode = value, amplitude, mode
         self.angle = np.zeros((len(nodes), len(axes)))
+        self.idx = np.ix_(self.nodes, self.axes)
         self.rot = None
 
     def bind(self, rotations) -> None:
@@ -93,7 +95,7 @@ class PrescribedRotation(Effect):
         self.angle[:] = 0.0
 
     def constrain(self, t_next, dt, x, v):
-        idx = np.ix_(self.nodes, self.axes)
+        idx = self.idx
         if self.mode == "fixed":
             self.rot.w[idx] = 0.0
             return

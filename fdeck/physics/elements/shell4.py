@@ -161,8 +161,7 @@ class TsSection(_ShellSection):
     formulation: Literal["ts"]
     points: int | None = Field(None, ge=2, le=9, description="Integration points through the thickness.")
     integration: Literal["gauss", "lobatto"] = Field("gauss", description=(
-        "Through-thickness rule: gauss (points inside) or lobatto (one on each face; resolves a thin tension "
-        "layer when compression is much softer than tension)."))
+        "Through-thickness rule: gauss (points inside) or lobatto (one on each face)."))
     transverse_shear_modulus: float | None = Field(None, gt=0.0, description="G13 = G23 [MPa].")
     shear_correction: float | None = Field(5.0 / 6.0, gt=0.0, le=1.0, description=(
         "kappa in k_s = kappa G13 h (5/6: homogeneous rectangular section; alpha = 1/kappa in MODELS 5)."))
@@ -325,17 +324,19 @@ _GQ = 1.0 / math.sqrt(3.0)
 
 
 @njit_parallel
-def forces(x, d, conn, T, tau, z, w, e1, e2, P, T0, tau0, aw, k0, bend, ks, gam0, has_dir, fe, ge, me, e_b, e_s):
+def forces(x, d, conn, T, tau, z, w, e1, e2, P, psi, T0, tau0, aw, k0, bend, ks, gam0, has_dir, fe, ge, me, energy):
     """Element nodal forces fe (n_el, 4, 3) [N] = dW/dx_a, director forces ge (n_el, 4, 3) [N mm] = dW/dd_a and
-    moments me = d_a x ge_a, with W the law's energy sum w psi (P (n_el, 4, n_z, 3, 3) from the material) plus the
-    sm bending energy (bend (n_el, 3) = D11, D22, D66 [N mm]; k0 (n_el, 4, 3) reference k11, k22, k12) and the MITC4
-    transverse shear energy (ks (n_el,) [N/mm], gam0 (n_el, 4) reference tying strains); e_b, e_s (n_el,) [mJ]."""
+    moments me = d_a x ge_a, with W the law's energy sum w psi (P (n_el, 4, n_z, 3, 3), psi (n_el, 4, n_z) from the
+    material) plus the sm bending energy (bend (n_el, 3) = D11, D22, D66 [N mm]; k0 (n_el, 4, 3) reference k11,
+    k22, k12) and the MITC4 transverse shear energy (ks (n_el,) [N/mm], gam0 (n_el, 4) reference tying strains);
+    energy (n_el, 3) [mJ]: the law's, bending, transverse shear."""
     n_z = z.shape[0]
     for e in prange(conn.shape[0]):
         for a in range(4):
             for i in range(3):
                 fe[e, a, i] = 0.0
                 ge[e, a, i] = 0.0
+        em = 0.0
         eb = 0.0
         es = 0.0
         om0 = 0.0  # MITC edge weights: sum over points of aw dW/dgamma_edge
@@ -392,6 +393,7 @@ def forces(x, d, conn, T, tau, z, w, e1, e2, P, T0, tau0, aw, k0, bend, ks, gam0
                 u = tau[e, g, l]
                 wl = w[e, g, l]
                 zl = z[l]
+                em += wl * psi[e, g, l]
                 pf = P[e, g, l]
                 q10 = wl * (pf[0, 0] * e1[e, g, 0] + pf[0, 1] * e1[e, g, 1] + pf[0, 2] * e1[e, g, 2])
                 q11 = wl * (pf[1, 0] * e1[e, g, 0] + pf[1, 1] * e1[e, g, 1] + pf[1, 2] * e1[e, g, 2])
@@ -470,8 +472,9 @@ def forces(x, d, conn, T, tau, z, w, e1, e2, P, T0, tau0, aw, k0, bend, ks, gam0
             _edge_force(x, d, conn, e, 1, 2, om1, fe, ge)
             _edge_force(x, d, conn, e, 3, 2, om2, fe, ge)
             _edge_force(x, d, conn, e, 0, 3, om3, fe, ge)
-        e_b[e] = eb
-        e_s[e] = es
+        energy[e, 0] = em
+        energy[e, 1] = eb
+        energy[e, 2] = es
         if has_dir:
             for a in range(4):
                 n = conn[e, a]
@@ -607,8 +610,8 @@ class ShellGroup:
         self.fe = np.zeros((n_el, 4, 3))
         self.ge = np.zeros((n_el, 4, 3))
         self.me = np.zeros((n_el, 4, 3))
-        self.e_b = np.zeros(n_el)
-        self.e_s = np.zeros(n_el)
+        self.energy = np.zeros((n_el, 3))  # per element: the law's, bending, transverse shear [mJ]
+        self.e_b, self.e_s = self.energy[:, 1], self.energy[:, 2]  # views
         self.dt_e = np.zeros(n_el)
         self.ptr, self.slots = node_slots(self.conn, len(X))
         self._evaluate_material()
@@ -769,9 +772,9 @@ class ShellGroup:
         kinematics(x, d, self.conn, self.T, self.tau, self.z, self.e1, self.e2, self.N, self.T0, self.tau0,
                    self.has_dir, self.F, self.J)
         self._evaluate_material()
-        forces(x, d, self.conn, self.T, self.tau, self.z, self.w, self.e1, self.e2, self.P, self.T0, self.tau0,
-               self.aw, self.k0, self.bend, self.ks, self.gam0, self.has_dir, self.fe, self.ge, self.me, self.e_b,
-               self.e_s)
+        forces(x, d, self.conn, self.T, self.tau, self.z, self.w, self.e1, self.e2, self.P, self.psi, self.T0,
+               self.tau0, self.aw, self.k0, self.bend, self.ks, self.gam0, self.has_dir, self.fe, self.ge, self.me,
+               self.energy)
 
     def add_forces(self, f_int):
         from fdeck.engine.gather import gather_add
@@ -782,7 +785,7 @@ class ShellGroup:
 
     def strain_energy(self) -> float:
         """Stored energy [mJ]: the law's sum w psi + bending + transverse shear."""
-        return float(np.einsum("egl,egl->", self.w, self.psi)) + float(self.e_b.sum()) + float(self.e_s.sum())
+        return float(self.energy.sum())
 
     def energy_part(self, name: str) -> float:
         return float(self.e_b.sum()) if name == "bending_energy" else float(self.e_s.sum())

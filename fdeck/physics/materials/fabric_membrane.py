@@ -10,6 +10,14 @@ the deformation: a_i = F m_i. The energy per reference volume [MPa = mJ/mm^3] is
   (``compression``), so compression can be made as asymmetric as the thick-shell model of [J] needs. Beyond its last
   point a table continues with its last slope. f_i is the second Piola-Kirchhoff stress along the fibre, so
   S = f_1 m1 x m1 + f_2 m2 x m2 and sigma = (1/J) f F (m x m) F^T, MODELS 5's fibre term.
+  Kinks are rounded so that f is C1: each interior kink over +-5 % of its shorter segment (the stress equals the
+  table outside; see ``_curve``) and the tension/compression junction over |E| < JUNCTION = 1e-10 (both curves
+  are then shifted by -3/16 (k_t - k_c) JUNCTION, 1e-7 MPa for the presets, so that f(0) = 0; a wider band
+  would shift the soft compressive curve of t300_3k_ts enough to change its bending). Central differences on a
+  spring whose stiffness switches abruptly have instability tongues well below the critical step (a 100:1
+  tension/compression switch grows from any start at 0.9 of it, tests/test_fabric_membrane.py; three-point
+  bending coupons of the presets blew up within 0.1 s); with rounded kinks the round-off noise meets a smooth
+  spring and stays small.
 * gamma = asin(s) - asin(m1 . m2), s = a_1 . a_2 / (|a_1| |a_2|): the in-plane shear angle between the current
   fibres [rad] (positive when they close). Phi'(gamma) = tau(gamma), the shear stress-shear angle curve of the card
   (table in degrees, odd in gamma) up to the locking angle, then tau(gamma_lock) + G_lock (|gamma| - gamma_lock):
@@ -36,10 +44,15 @@ to our reading of that manual:
      with a matrix law beside the fibres; a dry fabric has none.
   4. Two families at any initial angle (the frame's warp and weft rows); MAT 249 takes up to eight.
 
-Stable-step moduli: along fibre i, max(f_i' I_i + |f_i| + shear terms, f_i'(0+)): never below the tensile tangent
-at rest, because a fabric that is entirely in compression (a buckled sheet) would otherwise get a step sized for its
-soft compressive curve and become unstable the cycle its fibres go back into tension. The third modulus (along the
-normal) holds only the second-variation terms that act in every direction.
+Stable-step moduli: along fibre i, max(k_i I_i + |f_i| + shear terms, f_i'(0+)), with k_i the slope of the
+segment holding E_i or, within 10 % of the segment's length from one of its ends, the larger of it and the
+neighbour's slope there: a fibre that oscillates across a kink of its curve (the end of
+the toe, where the tangent grows 5x in the presets) must be integrated with the stiffer side's step (measured:
+three-point bending coupons blew up within 0.1 s with the current segment's slope alone), and never below the
+tensile tangent at rest, because a fabric entirely in compression (a buckled sheet) would otherwise get a step
+sized for its soft compressive curve and become unstable the cycle its fibres go back into tension. The shear
+slope likewise includes the locking modulus within 10 % of the locking angle. The third modulus (along the normal)
+holds only the second-variation terms that act in every direction.
 
 Presets (``presets/fabric_membrane/*.yaml``, selected by ``preset:``; deck values override them key by key):
     t300_3k     plain-weave carbon T300-3K, 0.23 mm, curves for the shell-membrane hybrid (``sm``) of [J]
@@ -66,8 +79,9 @@ from fdeck.registry import MaterialKind, register_material
 MAX_POINTS = 16
 """Largest number of points of one load curve (fixes the parameter block size)."""
 
-CURVE = 1 + 3 * MAX_POINTS
-"""A packed curve: [n, x_0..x_15, y_0..y_15, energy at x_0..x_15]."""
+CURVE = 1 + 5 * MAX_POINTS
+"""A packed curve: [n, x_0..x_15, y_0..y_15, energy at x_0..x_15, rounding half-width at x_0..x_15, energy shift
+of the rounding accumulated up to and including x_0..x_15] (see ``_curve``)."""
 
 WARP_T, WARP_C, WEFT_T, WEFT_C = 0, CURVE, 2 * CURVE, 3 * CURVE
 SHEAR = 4 * CURVE
@@ -77,6 +91,15 @@ FLOOR = SHEAR + CURVE + 4
 N_PARAM = FLOOR + 2
 
 _inline = numba.njit(inline="always", **FLAGS)
+
+JUNCTION = 1e-10
+"""Half-width [-] of the strain band over which the tension and compression tangents are blended at E = 0."""
+
+ROUND = 0.05
+"""Half-width of the rounding of a curve's interior kinks, as a fraction of the shorter adjacent segment."""
+
+NEAR = 0.1
+"""Fraction of a curve segment, at each end, within which the stable step also takes the neighbouring slope."""
 
 PRESET_DIR = resources.files(__package__).joinpath("presets", "fabric_membrane")
 """Folder of this card's preset files (a module attribute so tests can point it elsewhere)."""
@@ -179,16 +202,23 @@ class FabricMembrane(MaterialCard):
 # Packing
 # ----------------------------------------------------------------------------------------------------------------
 
-def _pack_curve(p: np.ndarray, o: int, pts) -> None:
-    """Curve at p[o:o+CURVE]: n, abscissae, ordinates, and the energy integral_0^x_k f at every point."""
+def _pack_curve(p: np.ndarray, o: int, pts, rounded: bool = True) -> None:
+    """Curve at p[o:o+CURVE]: n, abscissae, ordinates, the energy integral_0^x_k f of the piecewise-linear curve at
+    every point, and (``rounded``) the half-width d_k = ROUND min(adjacent lengths) of the rounding of each interior
+    kink with the energy shift it leaves beyond it, 0.1 (s_k - s_(k-1)) d_k^2, accumulated from the first kink."""
     x = np.array([q[0] for q in pts], float)
     y = np.array([q[1] for q in pts], float)
     n = len(x)
     energy = np.concatenate([[0.0], np.cumsum(0.5 * (y[1:] + y[:-1]) * np.diff(x))])
+    width, shift = np.zeros(n), np.zeros(n)
+    if rounded and n > 2:
+        length = np.abs(np.diff(x))
+        slope = np.diff(y) / np.diff(x)
+        width[1:-1] = ROUND * np.minimum(length[:-1], length[1:])
+        shift[1:-1] = 0.1 * (slope[1:] - slope[:-1]) * width[1:-1] ** 2
     p[o] = n
-    p[o + 1:o + 1 + n] = x
-    p[o + 1 + MAX_POINTS:o + 1 + MAX_POINTS + n] = y
-    p[o + 1 + 2 * MAX_POINTS:o + 1 + 2 * MAX_POINTS + n] = energy
+    for i, arr in enumerate((x, y, energy, width, np.cumsum(shift))):
+        p[o + 1 + i * MAX_POINTS:o + 1 + i * MAX_POINTS + n] = arr
 
 
 def pack(card: FabricMembrane) -> np.ndarray:
@@ -199,9 +229,9 @@ def pack(card: FabricMembrane) -> np.ndarray:
     _pack_curve(p, WEFT_T, card.weft.tension)
     _pack_curve(p, WEFT_C, card.weft.compression)
     sh = card.shear
-    _pack_curve(p, SHEAR, [(math.radians(g), t) for g, t in sh.curve])
+    _pack_curve(p, SHEAR, [(math.radians(g), t) for g, t in sh.curve], rounded=False)
     g_lock = math.radians(sh.locking_angle)
-    tau, phi, _ = _curve(p, SHEAR, g_lock)
+    tau, phi, _, _ = _curve(p, SHEAR, g_lock)
     p[SHEAR + CURVE:SHEAR + CURVE + 4] = [g_lock, tau, phi, sh.locking_modulus]
     for i, c in enumerate((card.warp.tension, card.weft.tension)):
         p[FLOOR + i] = c[1][1] / c[1][0]
@@ -213,10 +243,29 @@ def pack(card: FabricMembrane) -> np.ndarray:
 # ----------------------------------------------------------------------------------------------------------------
 
 @_inline
+def _slope(p, xs, ys, k):
+    return (p[ys + k + 1] - p[ys + k]) / (p[xs + k + 1] - p[xs + k])
+
+
+@_inline
 def _curve(p, o, x):
-    """(f(x), integral_0^x f, f'(x)) of the piecewise-linear curve packed at p[o]; x on the curve's side of 0."""
+    """(f(x), integral_0^x f, f'(x), step slope) of the curve packed at p[o]; x on the curve's side of 0.
+
+    The curve is the piecewise-linear table with every interior kink x_k rounded over |x - x_k| < d_k: there the
+    tangent goes from the left slope a to the right slope b as a + (b - a) S(u), S(u) = 3u^2 - 2u^3,
+    u = (x - x_k + d_k) / (2 d_k), so f is C1 and equals the table outside the bands (the symmetric S integrates
+    to the table's chord); the energy beyond a band is the table's plus 0.1 (b - a) d_k^2. Why: an explicit step
+    near its limit turns a spring whose stiffness switches abruptly into a growing oscillation (central
+    differences on a bilinear spring have instability tongues from about 0.55 of the critical step; measured in
+    tests/test_fabric_membrane.py), while noise about a rounded kink sees a smooth, linear-looking spring.
+
+    The step slope is the largest |slope| of the segment holding x and, within NEAR of a segment's length from one
+    of its ends, of the neighbour beyond that end, so that a fibre straddling a kink is integrated with the step
+    of its stiffer side.
+    """
     n = int(p[o])
     xs, ys, es = o + 1, o + 1 + MAX_POINTS, o + 1 + 2 * MAX_POINTS
+    ds, cs = o + 1 + 3 * MAX_POINTS, o + 1 + 4 * MAX_POINTS
     k = 0
     if p[xs + 1] > 0.0:  # increasing abscissae (tension, shear)
         while k + 2 < n and x > p[xs + k + 1]:
@@ -224,34 +273,80 @@ def _curve(p, o, x):
     else:  # decreasing abscissae (compression)
         while k + 2 < n and x < p[xs + k + 1]:
             k += 1
-    slope = (p[ys + k + 1] - p[ys + k]) / (p[xs + k + 1] - p[xs + k])
+    slope = _slope(p, xs, ys, k)
+    step = abs(slope)
     h = x - p[xs + k]
-    return p[ys + k] + slope * h, p[es + k] + p[ys + k] * h + 0.5 * slope * h * h, slope
+    length = p[xs + k + 1] - p[xs + k]
+    u = h / length  # position in the segment, 0..1 (beyond 1 on the extrapolated last segment)
+    if k > 0 and u < NEAR:
+        step = max(step, abs(_slope(p, xs, ys, k - 1)))
+    if k + 2 < n and u > 1.0 - NEAR:
+        step = max(step, abs(_slope(p, xs, ys, k + 1)))
+    # the kink nearest to x: node k (start of the segment) or node k + 1 (its end)
+    j = k if abs(h) <= abs(x - p[xs + k + 1]) else k + 1
+    d = p[ds + j] if 0 < j < n - 1 else 0.0
+    s = x - p[xs + j]
+    if d > 0.0 and abs(s) < d:
+        # a, b: slopes left and right of the kink in increasing x (for a compression curve, walked towards
+        # decreasing x, the segment beyond the kink lies on the left)
+        increasing = p[xs + 1] > 0.0
+        a, b = _slope(p, xs, ys, j - 1), _slope(p, xs, ys, j)
+        if not increasing:
+            a, b = b, a
+        v = 0.5 * (s + d) / d
+        s1 = v * v * v * (1.0 - 0.5 * v)
+        s2 = v * v * v * v * (0.25 - 0.1 * v)
+        y = p[ys + j]
+        f = y + a * s + 2.0 * d * (b - a) * s1
+        psi = p[es + j] + p[cs + j - 1] + y * s + 0.5 * a * s * s + 4.0 * d * d * (b - a) * s2
+        if not increasing:
+            psi -= 0.1 * (b - a) * d * d
+        return f, psi, a + (b - a) * v * v * (3.0 - 2.0 * v), step
+    return p[ys + k] + slope * h, p[es + k] + p[cs + k] + p[ys + k] * h + 0.5 * slope * h * h, slope, step
 
 
 @_inline
 def _fibre(p, tension, compression, e):
-    """(f, psi, f') of one family at Green-Lagrange strain e."""
-    if e >= 0.0:
-        return _curve(p, tension, e)
-    return _curve(p, compression, e)
+    """(f, psi, f', step slope) of one family at Green-Lagrange strain e (see ``_curve``), with the junction of
+    the tension and compression curves rounded over |e| < JUNCTION (see the module docstring)."""
+    d = JUNCTION
+    kt = p[tension + 2 + MAX_POINTS] / p[tension + 2]  # first slopes: y_1 / x_1 of each curve
+    kc = p[compression + 2 + MAX_POINTS] / p[compression + 2]
+    dk = kt - kc
+    off = 0.1875 * dk * d  # both curves are shifted down by this beyond the band (f(0) = 0)
+    if e >= d:
+        f, psi, k, step = _curve(p, tension, e)
+        return f - off, psi - off * e + 0.05 * dk * d * d, k, step
+    if e <= -d:
+        f, psi, k, step = _curve(p, compression, e)
+        return f - off, psi - off * e - 0.05 * dk * d * d, k, step
+    u = 0.5 * (e + d) / d
+    s1 = u * u * u * (1.0 - 0.5 * u)
+    s2 = u * u * u * u * (0.25 - 0.1 * u)
+    # f(0) = 0 and psi(0) = 0 exactly: 2 s1(1/2) = 0.1875 and s2(1/2) = 0.0125
+    return (kc * e + dk * d * (2.0 * s1 - 0.1875), 0.5 * kc * e * e + dk * d * (4.0 * d * (s2 - 0.0125) - 0.1875 * e),
+            kc + dk * u * u * (3.0 - 2.0 * u), max(kt, kc))
 
 
 @_inline
 def _shear(p, g):
-    """(tau, Phi, dtau/dgamma) at shear angle g [rad]: the curve up to the locking angle, then the locking modulus;
-    odd tau, even Phi."""
+    """(tau, Phi, dtau/dgamma, step slope) at shear angle g [rad]: the curve up to the locking angle, then the
+    locking modulus; odd tau, even Phi. The step slope includes the locking modulus within NEAR of the locking
+    angle (the lock is the stiffest kink a shear wave meets)."""
     a = abs(g)
     o = SHEAR + CURVE
     if a <= p[o]:
-        tau, phi, k = _curve(p, SHEAR, a)
+        tau, phi, k, step = _curve(p, SHEAR, a)
+        if a > (1.0 - NEAR) * p[o]:
+            step = max(step, p[o + 3])
     else:
         k = p[o + 3]
+        step = k
         h = a - p[o]
         tau, phi = p[o + 1] + k * h, p[o + 2] + p[o + 1] * h + 0.5 * k * h * h
     if g < 0.0:
         tau = -tau
-    return tau, phi, k
+    return tau, phi, k, step
 
 
 @_inline
@@ -285,9 +380,9 @@ def point(F, frame, params, state, P):
     beta_2^2/I_2) and |d2gamma| <= ((2/sqrt 3) max(1/I_i) + 1/sqrt(I_1 I_2)) / c + |s| (1 + |s|) max(1/I_i) / c^2.
     """
     a1, a2, i1, i2, i12, s, c, g = _kinematics(F, frame)
-    f1, p1, k1 = _fibre(params, WARP_T, WARP_C, 0.5 * (i1 - 1.0))
-    f2, p2, k2 = _fibre(params, WEFT_T, WEFT_C, 0.5 * (i2 - 1.0))
-    tau, phi, kt = _shear(params, g)
+    f1, p1, _, k1 = _fibre(params, WARP_T, WARP_C, 0.5 * (i1 - 1.0))
+    f2, p2, _, k2 = _fibre(params, WEFT_T, WEFT_C, 0.5 * (i2 - 1.0))
+    tau, phi, _, kt = _shear(params, g)
     r = 1.0 / math.sqrt(i1 * i2)
     t = tau / c  # dPhi/ds
     w11 = f1 - t * s / i1
@@ -298,7 +393,7 @@ def point(F, frame, params, state, P):
         b2 = w12 * a1[row] + w22 * a2[row]
         for col in range(3):
             P[row, col] = b1 * frame[0, col] + b2 * frame[1, col]
-    # stable-step moduli
+    # stable-step moduli, with the step slopes (largest of the neighbouring segments, see _curve)
     inv_max = max(1.0 / i1, 1.0 / i2)
     kk = max(kt, 0.0) * (1.0 + abs(s))
     second = abs(tau) * ((1.1547005383792517 * inv_max + r) / c + abs(s) * (1.0 + abs(s)) * inv_max / (c * c))
@@ -325,9 +420,9 @@ def diagnose(F, frame, params):
     """-> (15,) in DIAGNOSTICS order: shear angle [deg], Green-Lagrange fibre strains [-], current unit fibre
     directions, energies [MPa], fibre stresses f_i [MPa] and tau [MPa]."""
     a1, a2, i1, i2, i12, s, c, g = _kinematics(F, frame)
-    f1, p1, _ = _fibre(params, WARP_T, WARP_C, 0.5 * (i1 - 1.0))
-    f2, p2, _ = _fibre(params, WEFT_T, WEFT_C, 0.5 * (i2 - 1.0))
-    tau, phi, _ = _shear(params, g)
+    f1, p1, _, _ = _fibre(params, WARP_T, WARP_C, 0.5 * (i1 - 1.0))
+    f2, p2, _, _ = _fibre(params, WEFT_T, WEFT_C, 0.5 * (i2 - 1.0))
+    tau, phi, _, _ = _shear(params, g)
     out = np.empty(len(DIAGNOSTICS))
     out[0], out[1], out[2] = math.degrees(g), 0.5 * (i1 - 1.0), 0.5 * (i2 - 1.0)
     q1, q2 = 1.0 / math.sqrt(i1), 1.0 / math.sqrt(i2)
