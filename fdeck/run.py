@@ -147,6 +147,9 @@ def make_summary(deck_path, deck, problem, result, verdicts, t_compile, frames) 
         "dt_min": result.dt_min if result.cycles else None,
         "dt_max": result.dt_max if result.cycles else None,
         "added_mass_percent": [100.0 * a for a in result.added_mass],
+        **({"added_rotational_inertia_percent": {g.name: 100.0 * g.added_rotational_inertia for g in problem.groups
+                                                 if getattr(g, "rotational", False)}}
+           if getattr(problem, "rotations", None) is not None else {}),
         "frames": frames,
         "final": last,
         "measures": {c: last.get(c) for m in problem.measures for c in m.columns},

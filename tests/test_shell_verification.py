@@ -39,9 +39,10 @@ def bend(form, section, span, n, timoshenko_ratio=0.0):
 
 
 def test_sm_three_point_bending_matches_euler_bernoulli():
-    """Requirement: sm, span 40 mm (l/h = 40), centre deflection within 3 % of P l^3 / (48 EI); measured +0.02 %.
+    """Requirement: sm, span 40 mm (l/h = 40), centre deflection within 3 % of P l^3 / (48 EI); measured +0.19 %.
     The shear penalty's share of the deflection is quantified: the transverse-shear over bending energy (equal to
-    the deflection ratio for a linear strip under one load) is 12 EI / (k_s b l^2) within 10 % (here k_s hits its
+    the deflection ratio for a linear strip under one load) is 12 EI / (k_s b l^2) within 10 % (measured 0.2501 %
+    against 0.2500 %; here k_s hits its
     cap M0 h / 4 = 2500 N/mm because this strip's EI is a solid plate's; for the fabric preset it is
     A_e / (100 l^2), 1e-5 on 1 mm elements)."""
     span = 40.0
@@ -58,7 +59,7 @@ def test_sm_three_point_bending_matches_euler_bernoulli():
 
 def test_ts_three_point_bending_matches_timoshenko():
     """Requirement: ts (3 Gauss levels; G13 = E/1000, so shear is 75 % of the deflection), span 40 mm: centre
-    deflection within 3 % of P l^3 / (48 EI) + alpha P l / (4 G A) (MODELS 5 at x = l/2); measured -0.3 %."""
+    deflection within 3 % of P l^3 / (48 EI) + alpha P l / (4 G A) (MODELS 5 at x = l/2); measured -0.04 %."""
     span, G = 40.0, E / 1000
     ratio = 12 * ALPHA * EI / (G * B * H * span**2)
     section = dict(thickness=H, points=3, transverse_shear_modulus=G)
@@ -72,8 +73,8 @@ def test_ts_shear_to_bending_ratio_follows_timoshenko_as_the_span_shortens(span)
     """Requirement: the ratio of shear to bending deflection at mid-span follows 12 alpha EI / (G A l^2) within 5 %
     as the span shortens (G13 = E/1000; ratios 18.8, 4.7, 1.2): the mechanism by which the thick shell makes small
     wrinkles. The simulated split is the continuum one, w' = beta + gamma: the bending part is the integral of
-    the directors' rotation beta = -d_x over the half span, the shear part the rest. Measured 1.5 %, 0.4 %,
-    0.1 %."""
+    the directors' rotation beta = -d_x over the half span, the shear part the rest. Measured +1.6 %, +0.4 %,
+    +0.1 %."""
     G = E / 1000
     analytic = 12 * ALPHA * EI / (G * B * H * span**2)
     section = dict(thickness=H, points=3, transverse_shear_modulus=G)
@@ -87,12 +88,12 @@ def test_ts_shear_to_bending_ratio_follows_timoshenko_as_the_span_shortens(span)
     assert (w - w_bend) / w_bend == pytest.approx(analytic, rel=0.05)
 
 
-def static_deflection(form, fields, span, n, mat):
+def static_deflection(form, fields, span, n, mat, cells="quad"):
     """Centre deflection of the half strip under P = 1 N by a linear static solve with the element's FD tangent
     at rest (independent of the engine's dynamics: locking is a property of the element's stiffness)."""
-    m = plate((0, 0, 0), (span / 2, B), (n, 1))
-    X, conn = m.X, m.cells["quad"]
-    g, st = make(form, X, conn, "quad", mat=mat, fields=fields)
+    m = plate((0, 0, 0), (span / 2, B), (n, 1), triangles=cells == "triangle")
+    X, conn = m.X, m.cells[cells]
+    g, st = make(form, X, conn, cells, mat=mat, fields=fields)
     nn = len(X)
     k = 6
     x0, d0 = X.copy(), st.d0.copy()
@@ -126,13 +127,15 @@ def static_deflection(form, fields, span, n, mat):
     return -u.reshape(nn, k)[xs == 0.0, 2].mean()
 
 
+@pytest.mark.parametrize("cells", ["quad", "triangle"])
 @pytest.mark.parametrize("slenderness", [100.0, 10000.0])
 @pytest.mark.parametrize("form", ["sm", "ts"])
-def test_thin_strips_do_not_lock(form, slenderness):
-    """Requirement: MITC4 removes shear locking: thin strips (l/h = 100 and 10 000, 10 elements on the half span)
-    bend within 3 % of Euler-Bernoulli (ts: plus its Timoshenko term, negligible here). A locking element would be
-    stiffer by orders of magnitude at l/h = 10 000. Linear static solve with the FD stiffness of (forces, moments),
-    so no dynamics is involved."""
+def test_thin_strips_do_not_lock(form, slenderness, cells):
+    """Requirement: MITC4 removes shear locking: thin strips (l/h = 100 and 10 000, 10 quadrilaterals or 20
+    triangles (degenerate quadrilaterals) on the half span) bend within 3 % of Euler-Bernoulli (ts: plus its
+    Timoshenko term, negligible here). A locking element would be stiffer by orders of magnitude at l/h = 10 000.
+    Linear static solve with the FD stiffness of (forces, moments), so no dynamics is involved. Measured -0.2 to
+    -0.25 % for both cell types."""
     span = 20.0
     h = span / slenderness
     EIb = E * h**3 / 12 * B
@@ -141,7 +144,7 @@ def test_thin_strips_do_not_lock(form, slenderness):
         fields = dict(thickness=h, bending_stiffness=E * h**3 / 12, twisting_stiffness=E * h**3 / 24)
     else:
         fields = dict(thickness=h, points=2, transverse_shear_modulus=G)
-    w = static_deflection(form, fields, span, 10, MAT)
+    w = static_deflection(form, fields, span, 10, MAT, cells)
     exact = span**3 / (48 * EIb) + (ALPHA * span / (4 * G * B * h) if form == "ts" else 0.0)
     assert w == pytest.approx(exact, rel=0.03)
 
