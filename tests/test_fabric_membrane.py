@@ -249,7 +249,8 @@ def test_a_sharp_tension_compression_switch_is_unstable_below_the_critical_step_
     rng = np.random.default_rng(8)
     assert all(central_differences(sharp, dt, *rng.uniform(-1, 1, 2), 4000) > 1e6 for _ in range(5))
     card = fm.FabricMembrane(type="fabric_membrane", density=1.0,
-                             warp={"tension": [[0, 0], [0.01, 0.01 * kt]], "compression": [[0, 0], [-0.01, -0.01 * kc]]},
+                             warp={"tension": [[0, 0], [0.01, 0.01 * kt]],
+                                   "compression": [[0, 0], [-0.01, -0.01 * kc]]},
                              weft={"tension": [[0, 0], [0.01, 0.01]], "compression": [[0, 0], [-0.01, -0.01]]},
                              shear={"curve": [[0, 0], [30, 0.1]], "locking_angle": 60, "locking_modulus": 1.0})
     p = fm.pack(card)

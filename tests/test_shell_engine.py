@@ -84,7 +84,8 @@ def test_hexahedra_and_shells_live_in_one_deck(tmp_path):
     data = {
         "mesh": {"file": str(tmp_path / "mixed.vtu"),
                  "node_sets": {"xmin": {"box": [[0, 0, 0], [0, 2, 2]]}, "xmax": {"box": [[10, 0, 0], [10, 2, 2]]}},
-                 "element_sets": {"core": {"box": [[0, 0, 0], [10, 2, 1.9]]}, "skin": {"box": [[0, 0, 2], [10, 2, 2]]}}},
+                 "element_sets": {"core": {"box": [[0, 0, 0], [10, 2, 1.9]]},
+                                  "skin": {"box": [[0, 0, 2], [10, 2, 2]]}}},
         "materials": {"core": {"type": "linear_elastic", "density": 1e-9, "youngs_modulus": E_core,
                                "poisson_ratio": 0.0},
                       "skin": linear_fabric(E_skin, G=100.0)},

@@ -25,9 +25,9 @@ the deformation: a_i = F m_i. The energy per reference volume [MPa = mJ/mm^3] is
 
 Stress: S = 2 dpsi/dC = sum_ij W_ij m_i x m_j and P = F S = sum_ij W_ij a_i x m_j with
 W_11 = f_1 - tau s / (I_1 c), W_22 = f_2 - tau s / (I_2 c), W_12 = W_21 = tau / (c sqrt(I_1 I_2)), where
-c = sqrt(1 - s^2) = cos(gamma + gamma_0) and I_i = a_i . a_i. S has no component along the frame's third row (the sheet normal): the law
-is plane stress and carries no through-thickness energy, so a shell may give F any third column (fdeck's shells give
-the unit normal).
+c = sqrt(1 - s^2) = cos(gamma + gamma_0) and I_i = a_i . a_i. S has no component along the frame's third row (the
+sheet normal): the law is plane stress and carries no through-thickness energy, so a shell may give F any third
+column (fdeck's shells give the unit normal).
 
 Where this differs from LS-DYNA's *MAT_REINFORCED_THERMOPLASTIC (MAT 249; LS-DYNA Keyword User's Manual, Vol. II),
 to our reading of that manual:
@@ -46,13 +46,12 @@ to our reading of that manual:
 
 Stable-step moduli: along fibre i, max(k_i I_i + |f_i| + shear terms, f_i'(0+)), with k_i the slope of the
 segment holding E_i or, within 10 % of the segment's length from one of its ends, the larger of it and the
-neighbour's slope there: a fibre that oscillates across a kink of its curve (the end of
-the toe, where the tangent grows 5x in the presets) must be integrated with the stiffer side's step (measured:
-three-point bending coupons blew up within 0.1 s with the current segment's slope alone), and never below the
-tensile tangent at rest, because a fabric entirely in compression (a buckled sheet) would otherwise get a step
-sized for its soft compressive curve and become unstable the cycle its fibres go back into tension. The shear
-slope likewise includes the locking modulus within 10 % of the locking angle. The third modulus (along the normal)
-holds only the second-variation terms that act in every direction.
+neighbour's slope there, so that a fibre straddling a kink (the end of the toe, where the tangent grows 5x in the
+presets) is integrated with its stiffer side's step (a precaution: the rounding above is what cured the measured
+blow-up); and never below the tensile tangent at rest, because a fabric entirely in compression (a buckled sheet)
+would otherwise get a step sized for its soft compressive curve and become unstable the cycle its fibres go back
+into tension. The shear slope likewise includes the locking modulus within 10 % of the locking angle. The third
+modulus (along the normal) holds only the second-variation terms that act in every direction.
 
 Presets (``presets/fabric_membrane/*.yaml``, selected by ``preset:``; deck values override them key by key):
     t300_3k     plain-weave carbon T300-3K, 0.23 mm, curves for the shell-membrane hybrid (``sm``) of [J]
