@@ -159,7 +159,9 @@ def info(deck: Path = typer.Argument(..., help="Deck file.")):
                    f"added mass {100 * plan.added_mass:.3g} %, damping alpha {plan.alpha:g} 1/s")
     for g in p.groups:
         mem += sum(a.nbytes for a in vars(g).values() if isinstance(a, np.ndarray) and a.base is None)
-        typer.echo(f"  group {g.name}: {len(g.conn)} {g.cell_type}, {g.formulation}, material {g.material.name}")
+        typer.echo(f"  group {g.name}: {len(g.conn)} {g.cell_type}, {g.formulation}, material {g.material.name}"
+                   + (f", rotational inertia +{100 * g.added_rotational_inertia:.3g} % over rho h^3/12 (so rotations "
+                      "do not set the step)" if getattr(g, "rotational", False) else ""))
     typer.echo(f"  effects: {', '.join(e.name for e in p.effects) or 'none'}")
     typer.echo(f"  about {cycles} cycles in all (the step follows the current tangent, so it may differ); "
                f"element arrays {mem / 2**20:.1f} MiB")

@@ -29,6 +29,8 @@ class MaterialKind:
     n_state: history variables per integration point (0 for hyperelastic laws).
     diagnostics: names of the per-point output fields returned by ``diagnose``.
     diagnose(F, frame, params) -> float64 array (len(diagnostics),) at one point, or None.
+    plane_stress: the stress has no component along the frame's third row (S f3 = 0) and the energy does not
+        depend on F f3, so shells and membranes may carry the law with F f3 = unit normal (no thickness condensation).
     """
 
     name: str
@@ -39,6 +41,7 @@ class MaterialKind:
     n_state: int = 0
     diagnostics: tuple[str, ...] = ()
     diagnose: Callable | None = None
+    plane_stress: bool = False
 
 
 @dataclass(frozen=True)
@@ -60,13 +63,21 @@ class EffectKind:
 class FormulationKind:
     """An element formulation (a way to turn nodal positions into forces for one element shape).
 
-    build(section_arrays) -> engine group object; see fdeck.physics.elements.
+    build(name, section card, X, conn, ids, material kind, params, frame, rho, cell_type) -> engine group object;
+    see fdeck.physics.elements.
+    card: the pydantic section card of this formulation (``formulation: Literal[name]`` plus its own fields), or None
+        for the solid section card of ``fdeck.deck.model`` (elements, material, orientation, hourglass).
+    cell_types: mesh cell types (meshio names) the formulation accepts.
+    plane_stress: the formulation carries only plane-stress laws (``MaterialKind.plane_stress``).
     """
 
     name: str
     build: Callable
     description: str = ""
     nodes_per_element: int = 8
+    card: type | None = None
+    cell_types: tuple[str, ...] = ("hexahedron",)
+    plane_stress: bool = False
 
 
 @dataclass(frozen=True)

@@ -50,8 +50,10 @@ class Outputs(solver.Sink):
         self.frames_written = 0
         self.last_frame_time = -1.0
 
-    def frame(self, t, x, v):
+    def frame(self, t, x, v, point_fields=None):
         point = {"displacement": x - self.problem.X, "velocity": v.copy()}
+        for name, val in (point_fields or {}).items():
+            point[name] = np.array(val, copy=True)
         with np.errstate(invalid="ignore", divide="ignore"):  # an inverted element's last frame holds NaN by design
             cells = assemble_cells(self.problem)
         for s in self.series:
@@ -100,10 +102,13 @@ def execute(deck, base: Path, out_dir: Path, name: str, deck_path: str, progress
     t_compile = time.perf_counter() - t_compile
     out = Outputs(problem, out_dir, name, progress)
     with _Signals() as sig:
-        out.frame(0.0, problem.X.copy(), np.zeros_like(problem.X))
+        rotations = getattr(problem, "rotations", None)
+        first = None if rotations is None else {"director": rotations.d0}
+        out.frame(0.0, problem.X.copy(), np.zeros_like(problem.X), first)
         result = solver.run(problem, out, should_stop=lambda: sig.received is not None)
         if result.status in ("interrupted", "failed") and result.t > out.last_frame_time:
-            out.frame(result.t, result.final_positions, result.final_velocities)
+            last = None if result.final_directors is None else {"director": result.final_directors}
+            out.frame(result.t, result.final_positions, result.final_velocities, last)
     out.close()
     hist = np.array(result.history) if result.history else np.zeros((0, len(result.columns)))
     verdicts = checks_mod.evaluate(deck.checks, hist, result.columns, problem.duration)
@@ -143,6 +148,9 @@ def make_summary(deck_path, deck, problem, result, verdicts, t_compile, frames) 
         "dt_min": result.dt_min if result.cycles else None,
         "dt_max": result.dt_max if result.cycles else None,
         "added_mass_percent": [100.0 * a for a in result.added_mass],
+        **({"added_rotational_inertia_percent": {g.name: 100.0 * g.added_rotational_inertia for g in problem.groups
+                                                 if getattr(g, "rotational", False)}}
+           if getattr(problem, "rotations", None) is not None else {}),
         "frames": frames,
         "final": last,
         "measures": {c: last.get(c) for m in problem.measures for c in m.columns},

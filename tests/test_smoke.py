@@ -9,7 +9,8 @@ import pytest
 from helpers import DECKS
 
 pytestmark = pytest.mark.smoke
-ALL = sorted(DECKS.glob("*.yaml")) + sorted(DECKS.glob("three_point_bending/*.yaml"))
+ALL = (sorted(DECKS.glob("*.yaml")) + sorted(DECKS.glob("three_point_bending/*.yaml"))
+       + sorted(DECKS.glob("coupons/*.yaml")))
 
 
 @pytest.mark.parametrize("path", ALL, ids=[p.stem for p in ALL])

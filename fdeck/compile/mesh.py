@@ -10,8 +10,9 @@ import numpy as np
 
 from fdeck.compile.errors import CompileError
 
-# meshio cell type -> (fdeck cell type, node count); 8-node hexahedra are the only solid kind so far.
-SOLID_TYPES = {"hexahedron": 8}
+# meshio cell types fdeck reads, with their node counts: 8-node hexahedra (solids), 4-node quadrilaterals and
+# 3-node triangles (shells and membranes).
+SUPPORTED_TYPES = {"hexahedron": 8, "quad": 4, "triangle": 3}
 
 
 @dataclass
@@ -49,6 +50,32 @@ def block(origin, size, divisions=None, element_size=None) -> MeshArrays:
     return m
 
 
+def plate(origin, size, divisions=None, element_size=None, triangles=False) -> MeshArrays:
+    """Structured quadrilaterals (or each split into two triangles) on the rectangle [origin, origin + size] in the
+    plane z = origin[2], node order counter-clockwise seen from +z (normal +z). Node sets xmin, xmax, ymin, ymax
+    (edges) and `all`; element set `all`."""
+    if divisions is None:
+        divisions = [max(1, math.ceil(s / element_size - 1e-9)) for s in size]
+    nx, ny = divisions
+    xs = np.linspace(origin[0], origin[0] + size[0], nx + 1)
+    ys = np.linspace(origin[1], origin[1] + size[1], ny + 1)
+    gx, gy = np.meshgrid(xs, ys, indexing="ij")
+    X = np.stack([gx.ravel(), gy.ravel(), np.full(gx.size, float(origin[2]))], axis=1)
+    nid = np.arange(len(X)).reshape(nx + 1, ny + 1)
+    i, j = np.meshgrid(np.arange(nx), np.arange(ny), indexing="ij")
+    i, j = i.ravel(), j.ravel()
+    quads = np.stack([nid[i, j], nid[i + 1, j], nid[i + 1, j + 1], nid[i, j + 1]], 1)
+    if triangles:
+        ctype, conn = "triangle", np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
+    else:
+        ctype, conn = "quad", quads
+    sets = {"all": np.arange(len(X)), "xmin": nid[0], "xmax": nid[-1], "ymin": nid[:, 0], "ymax": nid[:, -1]}
+    m = MeshArrays(X, {ctype: conn}, {k: np.sort(v) for k, v in sets.items()})
+    m.ids = {ctype: np.arange(1, len(conn) + 1)}
+    m.element_sets["all"] = {ctype: np.arange(len(conn))}
+    return m
+
+
 def read_file(path: Path) -> MeshArrays:
     """Any mesh meshio reads; keeps its point sets and cell sets (Abaqus *NSET/*ELSET, Gmsh physical groups)."""
     import meshio
@@ -61,13 +88,13 @@ def read_file(path: Path) -> MeshArrays:
     X[:, : mesh.points.shape[1]] = mesh.points
     cells, block_of = {}, []
     for b, cb in enumerate(mesh.cells):
-        if cb.type in SOLID_TYPES:
+        if cb.type in SUPPORTED_TYPES:
             cells.setdefault(cb.type, []).append(cb.data)
             block_of.append((b, cb.type, sum(len(c) for c in cells[cb.type][:-1])))
     if not cells:
         kinds = sorted({cb.type for cb in mesh.cells})
         raise CompileError([(("mesh", "file"), f"no supported elements in '{path}' (found {kinds}; "
-                                                 f"supported: {sorted(SOLID_TYPES)})")])
+                                                 f"supported: {sorted(SUPPORTED_TYPES)})")])
     m = MeshArrays(X, {t: np.concatenate(c).astype(np.int64) for t, c in cells.items()})
     m.ids = {t: np.arange(1, len(c) + 1) for t, c in m.cells.items()}
     m.node_sets = {k: np.sort(np.asarray(v, np.int64).ravel()) for k, v in mesh.point_sets.items()}

@@ -11,7 +11,7 @@ import numpy as np
 from fdeck import registry
 from fdeck.compile import amplitude
 from fdeck.compile.errors import CompileError
-from fdeck.compile.mesh import MeshArrays, add_box_sets, block, read_file
+from fdeck.compile.mesh import MeshArrays, add_box_sets, block, plate, read_file
 from fdeck.deck.model import Deck
 
 
@@ -29,6 +29,14 @@ class StepPlan:
 
 
 @dataclass
+class RotationalNodes:
+    """Nodes with rotational dofs: d0 (n_node, 3) reference unit directors (zero elsewhere), nodes (k,) indices."""
+
+    d0: np.ndarray
+    nodes: np.ndarray
+
+
+@dataclass
 class Problem:
     deck: Deck
     X: np.ndarray  # (n_node, 3) reference coordinates [mm]
@@ -41,6 +49,7 @@ class Problem:
     reactions: dict[str, np.ndarray] = field(default_factory=dict)
     damping: object | None = None
     measures: list = field(default_factory=list)  # objects with columns and evaluate(x, v)
+    rotations: RotationalNodes | None = None  # only when a group carries directors (shells)
 
     @property
     def n_node(self) -> int:
@@ -77,6 +86,7 @@ class Context:
     def __init__(self, deck: Deck, mesh: MeshArrays, physical_mass: np.ndarray):
         self.deck, self.mesh, self.X, self.physical_mass = deck, mesh, mesh.X, physical_mass
         self.path: tuple = ()
+        self.rotations: RotationalNodes | None = None
 
     def node_set(self, name: str) -> np.ndarray:
         if name not in self.mesh.node_sets:
@@ -99,6 +109,9 @@ def load_mesh(deck: Deck, base: Path) -> MeshArrays:
     m = deck.mesh
     if m.block is not None:
         mesh = block(m.block.origin, m.block.size, m.block.divisions, m.block.element_size)
+    elif m.plate is not None:
+        p = m.plate
+        mesh = plate(p.origin, p.size, p.divisions, p.element_size, p.triangles)
     else:
         path = (base / m.file) if not Path(m.file).is_absolute() else Path(m.file)
         if not path.exists():
@@ -119,12 +132,23 @@ def build_groups(deck: Deck, mesh: MeshArrays) -> list:
             continue
         kind = registry.MATERIALS[deck.materials[sec.material].type]
         card = deck.materials[sec.material]
+        form = registry.FORMULATIONS[sec.formulation]
         try:
             frame = fibre_frame(sec.orientation)
         except ValueError as exc:
             problems.append((path + ("orientation",), str(exc)))
             continue
+        if form.plane_stress and not kind.plane_stress:
+            known = sorted(k for k, v in registry.MATERIALS.items() if v.plane_stress)
+            problems.append((path + ("material",), f"formulation '{sec.formulation}' needs a plane-stress law; "
+                             f"'{sec.material}' is {kind.name} (plane-stress laws: {', '.join(known)})"))
+            continue
         for ctype, idx in mesh.element_sets[sec.elements].items():
+            if ctype not in form.cell_types:
+                problems.append((path + ("elements",), f"formulation '{sec.formulation}' takes "
+                                 f"{' or '.join(form.cell_types)} elements; set '{sec.elements}' holds {len(idx)} "
+                                 f"{ctype} elements, ids {mesh.ids[ctype][idx[:10]].tolist()}"))
+                continue
             twice = idx[owner[ctype][idx] >= 0]
             if len(twice):
                 problems.append((path + ("elements",), f"elements already in section "
@@ -135,12 +159,11 @@ def build_groups(deck: Deck, mesh: MeshArrays) -> list:
             params = np.broadcast_to(kind.pack(card), (len(idx), len(kind.pack(card))))
             frames = np.ascontiguousarray(np.broadcast_to(frame, (len(idx), 3, 3)))
             rho = np.full(len(idx), card.density)
-            hourglass = sec.hourglass
-            if sec.formulation == "reduced" and hourglass is None:
-                from fdeck.deck.model import Hourglass
-                hourglass = Hourglass()
-            g = registry.FORMULATIONS[sec.formulation].build(
-                f"section{i}:{sec.elements}", sec.formulation, mesh.X, conn, ids, kind, params, frames, rho, hourglass)
+            try:
+                g = form.build(f"section{i}:{sec.elements}", sec, mesh.X, conn, ids, kind, params, frames, rho, ctype)
+            except CompileError as exc:  # the element reports its own problems relative to the section
+                problems += [(path + tuple(p), m) for p, m in exc.problems]
+                continue
             bad = g.detJ_min <= 0
             if bad.any():
                 problems.append((path + ("elements",), f"{int(bad.sum())} inverted or degenerate elements, "
@@ -154,6 +177,50 @@ def build_groups(deck: Deck, mesh: MeshArrays) -> list:
     if problems:
         raise CompileError(problems)
     return groups
+
+
+def setup_rotations(deck: Deck, groups: list, n_node: int) -> RotationalNodes | None:
+    """Reference directors of the nodes of groups that carry rotations (``group.rotational``), or None.
+
+    Each such group adds area-weighted unit normals at its nodes (``add_normals``); a node's director is their
+    normalised sum. Neighbouring elements whose normals disagree in sign (inconsistent node order) are an error.
+    Then every such group derives its reference arrays from the directors (``set_directors``).
+    """
+    rot = [g for g in groups if getattr(g, "rotational", False)]
+    if not rot:
+        return None
+    acc, mag = np.zeros((n_node, 3)), np.zeros(n_node)
+    for g in rot:
+        g.add_normals(acc, mag)
+    norm = np.linalg.norm(acc, axis=1)
+    nodes = np.nonzero(mag > 0)[0]
+    d0 = np.zeros((n_node, 3))
+    d0[nodes] = acc[nodes] / np.where(norm[nodes] > 0, norm[nodes], 1.0)[:, None]
+    problems = []
+    for g in rot:
+        bad = g.flipped_elements(d0)
+        if len(bad):
+            problems.append((("sections", g.section_index, "elements"), f"{len(bad)} shell elements have a normal "
+                             f"opposite to their neighbours' (node order reversed), ids {bad[:10].tolist()}"))
+    if problems:
+        raise CompileError(problems)
+    for g in rot:
+        g.set_directors(d0)
+    return RotationalNodes(d0, nodes)
+
+
+def nodal_inertia(groups: list, n_node: int, rho: list[np.ndarray] | None = None) -> np.ndarray:
+    """Lumped rotational inertia (n_node,) [t mm^2] of the groups that carry rotations (0 elsewhere)."""
+    out = np.zeros(n_node)
+    for i, g in enumerate(groups):
+        if not getattr(g, "rotational", False):
+            continue
+        saved = g.rho
+        if rho is not None:
+            g.rho = rho[i]
+        np.add.at(out, g.conn.ravel(), g.inertia().ravel())
+        g.rho = saved
+    return out
 
 
 def nodal_mass(groups: list, n_node: int, rho: list[np.ndarray] | None = None) -> np.ndarray:
@@ -193,8 +260,10 @@ def compile_deck(deck: Deck, base: Path = Path(".")) -> Problem:
 
     mesh = load_mesh(deck, base)
     groups = build_groups(deck, mesh)
+    rotations = setup_rotations(deck, groups, len(mesh.X))
     mass = nodal_mass(groups, len(mesh.X))
     ctx = Context(deck, mesh, mass)
+    ctx.rotations = rotations
     effects, problems = [], []
     for i, sec in enumerate(deck.sections):  # section add-ons act on that section's groups
         for j, card in enumerate(getattr(sec, "effects", [])):
@@ -233,10 +302,10 @@ def compile_deck(deck: Deck, base: Path = Path(".")) -> Problem:
     steps = plan_steps(deck, groups, mass)
     damping = None
     if any(s.alpha > 0 for s in steps):  # built only when a step asks for it
-        damping = MassDamping(mass.copy())
+        damping = MassDamping(mass.copy(), rotational=rotations is not None)
         effects.append(damping)
     viscosity = bulk_viscosity.build(deck.steps, groups, np.cumsum([s.duration for s in steps]))
     if viscosity is not None:
         effects.append(viscosity)
     return Problem(deck, mesh.X, mesh.cells, groups, effects, mesh.node_sets, mass, steps, reactions, damping,
-                   measures)
+                   measures, rotations)

@@ -168,7 +168,8 @@ def _problem(err, locations, filename, model_cls) -> Problem:
     elif kind == "missing":
         message = f"missing required key '{err['loc'][-1]}'"
     elif kind in ("union_tag_invalid", "union_tag_not_found"):
-        disc = ast.literal_eval(ctx.get("discriminator", "'type'"))
+        raw = ctx.get("discriminator", "'type'")  # a quoted field name, or "name()" for a callable discriminator
+        disc = raw[:-2] if raw.endswith("()") else ast.literal_eval(raw)
         if kind == "union_tag_invalid":
             tags = ast.literal_eval(ctx["expected_tags"])
             tags = tags if isinstance(tags, tuple) else (tags,)

@@ -10,10 +10,11 @@ from __future__ import annotations
 import bisect
 from typing import Annotated, Literal, Union
 
-from pydantic import Field, model_validator
+from pydantic import Discriminator, Field, Tag, model_validator
 
 from fdeck import registry
 from fdeck.deck.base import Card
+from fdeck.deck.section import Orientation, SectionBase
 
 registry.load_plugins()
 
@@ -34,7 +35,8 @@ LoadCard = _union("loads", registry.EFFECTS)
 _section_effects = [k for k in registry.EFFECTS.values() if k.section == "section"]
 SectionEffectCard = _union("section", registry.EFFECTS) if _section_effects else None
 MeasureCard = _union(None, registry.MEASURES)
-Formulation = Literal[tuple(registry.FORMULATIONS)]  # type: ignore[valid-type]
+SOLID_FORMULATIONS = tuple(k for k, v in registry.FORMULATIONS.items() if v.card is None)
+Formulation = Literal[SOLID_FORMULATIONS]  # type: ignore[valid-type]
 
 
 # -- mesh -------------------------------------------------------------------------------------------
@@ -63,32 +65,44 @@ class BoxSet(Card):
     tolerance: float = Field(1e-6, ge=0, description="Added to every side of the box [mm].")
 
 
+class Plate(Card):
+    """Structured plate of quadrilaterals (or triangles) in the plane z = origin z, normal +z, for shells and
+    membranes. Node sets xmin, xmax, ymin, ymax (edges) and `all` are made."""
+
+    origin: Vector = Field((0.0, 0.0, 0.0), description="Corner with the smallest coordinates [mm].")
+    size: tuple[float, float] = Field(description="Edge lengths along x and y [mm].")
+    divisions: tuple[PositiveInt, PositiveInt] | None = Field(
+        None, description="Elements along x and y. Give this or `element_size`.")
+    element_size: float | None = Field(None, gt=0, description="Target edge length [mm]; divisions = ceil(size/h).")
+    triangles: bool = Field(False, description="Split every quadrilateral into two triangles.")
+
+    @model_validator(mode="after")
+    def _one_of(self):
+        if (self.divisions is None) == (self.element_size is None):
+            raise ValueError("give exactly one of `divisions` or `element_size`")
+        if min(self.size) <= 0:
+            raise ValueError(f"every edge length must be > 0, got {list(self.size)}")
+        return self
+
+
 class Mesh(Card):
-    """Either a built-in block or a mesh file read by meshio (Abaqus .inp, Gmsh .msh, ...), plus extra sets."""
+    """A built-in block (hexahedra), a built-in plate (shells) or a mesh file read by meshio (Abaqus .inp, Gmsh
+    .msh, ...; hexahedra, quadrilaterals and triangles, in any mix), plus extra sets."""
 
     block: Block | None = None
+    plate: Plate | None = None
     file: str | None = Field(None, description="Mesh file, relative to the deck's folder; its sets are kept.")
     node_sets: dict[str, BoxSet] = Field(default_factory=dict, description="Extra node sets by box.")
     element_sets: dict[str, BoxSet] = Field(default_factory=dict, description="Extra element sets by box.")
 
     @model_validator(mode="after")
     def _one_of(self):
-        if (self.block is None) == (self.file is None):
-            raise ValueError("give exactly one of `block` or `file`")
+        if sum(x is not None for x in (self.block, self.plate, self.file)) != 1:
+            raise ValueError("give exactly one of `block`, `plate` or `file`")
         return self
 
 
 # -- sections -----------------------------------------------------------------------------------------
-class Orientation(Card):
-    """Fibre frame of a section: warp lies in the plane normal to `normal`, at `warp_angle` (right-handed about
-    `normal`) from the projection of `reference` on that plane; weft = normal x warp (at +90 deg); thickness =
-    normal. A +-45 deg blank is `warp_angle: 45`."""
-
-    warp_angle: float = Field(0.0, description="Angle of the warp from the reference direction [deg].")
-    normal: Vector = Field((0.0, 0.0, 1.0), description="Sheet normal (thickness direction).")
-    reference: Vector = Field((1.0, 0.0, 0.0), description="Direction of warp at angle 0 (projected).")
-
-
 class Hourglass(Card):
     """Flanagan-Belytschko hourglass control of `reduced` hexahedra."""
 
@@ -97,15 +111,13 @@ class Hourglass(Card):
                                "sum|b|^2/8 with M the rest wave modulus; viscous: c rho c0 V^(2/3)/4).")
 
 
-class Section(Card):
-    """Assigns a material and an element formulation to an element set."""
+class Section(SectionBase):
+    """A solid section: assigns a material and a hexahedral formulation to an element set."""
 
-    elements: str = Field("all", description="Element set name.")
-    material: str = Field(description="Name of a card in `materials`.")
     formulation: Formulation = Field("fbar", description="Element formulation: "  # type: ignore[valid-type]
-                                     + "; ".join(f"{k}: {v.description}" for k, v in registry.FORMULATIONS.items()))
+                                     + "; ".join(f"{k}: {v.description}" for k, v in registry.FORMULATIONS.items()
+                                                 if v.card is None))
     hourglass: Hourglass | None = Field(None, description="Hourglass control (reduced only; default stiffness 0.05).")
-    orientation: Orientation = Field(default_factory=Orientation)
     if SectionEffectCard is not None:
         effects: list[SectionEffectCard] = Field(  # type: ignore[valid-type]
             default_factory=list, description="Add-ons computed on this section's elements (e.g. fibre_bending).")
@@ -115,6 +127,18 @@ class Section(Card):
         if self.hourglass is not None and self.formulation != "reduced":
             raise ValueError("`hourglass` applies to formulation `reduced` only")
         return self
+
+
+def formulation(value) -> str | None:
+    """Discriminator of section cards: their `formulation`, `fbar` when omitted."""
+    if isinstance(value, dict):
+        return value.get("formulation", "fbar")
+    return getattr(value, "formulation", None)
+
+
+SectionCard = Annotated[
+    Union[tuple(Annotated[k.card or Section, Tag(name)] for name, k in registry.FORMULATIONS.items())],
+    Discriminator(formulation)]
 
 
 # -- amplitudes ------------------------------------------------------------------------------------------
@@ -270,7 +294,7 @@ class Deck(Card):
         "mm-t-s-N-MPa", description="Consistent unit system of every number in the deck (no conversion is done).")
     mesh: Mesh
     materials: dict[str, MaterialCardU] = Field(min_length=1)  # type: ignore[valid-type]
-    sections: list[Section] = Field(min_length=1)
+    sections: list[SectionCard] = Field(min_length=1)  # type: ignore[valid-type]
     amplitudes: dict[str, Amplitude] = Field(default_factory=dict)
     boundary: list[BoundaryCard] = Field(default_factory=list)  # type: ignore[valid-type]
     loads: list[LoadCard] = Field(default_factory=list)  # type: ignore[valid-type]

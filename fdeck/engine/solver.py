@@ -8,6 +8,12 @@ Ledger at t(n): kinetic energy from v(n) = (v(n-1/2) + v(n+1/2)) / 2; internal e
 (hyperelastic strain energy + hourglass springs + other internal effects), not the integrated internal work, so
 the balance error KE + IE + dissipated - external work exposes forces inconsistent with energies or instability;
 external work (loads and reactions) and damping dissipation are integrated with the trapezoidal rule.
+
+Rotational degrees of freedom (``engine.rotation``) exist only when the problem has groups that need them
+(``problem.rotations`` is not None, e.g. shells): then nodal directors and angular velocities are advanced beside
+x and v, groups and effects that declare ``rotational = True`` are bound to them once, and the ledger adds the
+rotational kinetic energy and the work of moments. A problem without them runs the same operations as before they
+existed (no rotational arrays, no extra kernel calls).
 """
 
 from __future__ import annotations
@@ -20,6 +26,7 @@ import numba
 import numpy as np
 
 from fdeck.engine.integrate import drift, kick
+from fdeck.engine.rotation import Rotations, drift_rot, kick_rot
 
 
 class RunStopped(Exception):
@@ -49,7 +56,8 @@ class Result:
 class Sink:
     """Where the engine sends results (implemented by fdeck.run with fdeck.io)."""
 
-    def frame(self, t: float, x: np.ndarray, v: np.ndarray) -> None: ...
+    def frame(self, t: float, x: np.ndarray, v: np.ndarray, point_fields: dict | None = None) -> None:
+        """A frame at t; ``point_fields`` holds extra nodal fields (the director of shell nodes) when there are."""
 
     def history(self, row: list[float]) -> None: ...
 
@@ -57,14 +65,28 @@ class Sink:
 
 
 def history_columns(problem) -> list[str]:
+    """History columns. Problems with rotational dofs add the rotational share of the kinetic energy (which
+    ``kinetic_energy`` includes), the groups' own energy parts (e.g. bending) and the reaction moments."""
     cols = ["time", "dt", "kinetic_energy", "internal_energy", "strain_energy", "hourglass_energy",
             "damping_energy", "external_work", "energy_balance_error"]
+    rotations = getattr(problem, "rotations", None) is not None
+    if rotations:
+        cols.append("rotational_kinetic_energy")
+    cols += group_energy_columns(problem)
     cols += effect_energy_columns(problem)
     for name in problem.reactions:
         cols += [f"reaction_{name}_{c}" for c in "xyz"]
+        if rotations:
+            cols += [f"reaction_{name}_m{c}" for c in "xyz"]
     for m in problem.measures:
         cols += m.columns
     return cols
+
+
+def group_energy_columns(problem) -> list[str]:
+    """Named parts of the groups' strain energy (``group.energy_parts``, e.g. bending_energy), in order."""
+    names = [n for g in problem.groups for n in getattr(g, "energy_parts", ())]
+    return list(dict.fromkeys(names))
 
 
 def effect_energy_columns(problem) -> list[str]:
@@ -104,6 +126,7 @@ def _run(problem, sink: Sink, should_stop) -> Result:
     groups, effects = problem.groups, problem.effects
     forcing = [e for e in effects if e.ledger is not None]
     energy_cols = effect_energy_columns(problem)
+    part_cols = group_energy_columns(problem)
     own = {c: [e for e in forcing if e.ledger == "internal" and e.energy_column == c] for c in energy_cols}
     constraints = [e for e in effects if e.constrains]
     X = problem.X
@@ -114,6 +137,13 @@ def _run(problem, sink: Sink, should_stop) -> Result:
     fd_prev = np.zeros((n, 3))  # damping force at the previous cycle
     dx = np.zeros((n, 3))  # last position increment
     v_old, reaction = np.zeros((n, 3)), np.zeros((n, 3))
+    rot = None
+    if getattr(problem, "rotations", None) is not None:
+        rot = Rotations(problem.rotations.d0, problem.rotations.nodes)
+        for obj in list(groups) + list(effects):
+            if getattr(obj, "rotational", False):
+                obj.bind(rot)
+    ke_rot = 0.0
     timer = _Timer()
     T = problem.duration
     frame_times = np.linspace(0.0, T, problem.deck.output.frames + 1)
@@ -130,6 +160,8 @@ def _run(problem, sink: Sink, should_stop) -> Result:
         f_int.fill(0.0)
         f_ext.fill(0.0)
         f_damp.fill(0.0)
+        if rot is not None:
+            rot.clear()
         se = hg = p_hg = 0.0
         t0 = time.perf_counter()
         for g in groups:
@@ -172,6 +204,10 @@ def _run(problem, sink: Sink, should_stop) -> Result:
 
             m = nodal_mass(groups, n)
             inv_m = 1.0 / m
+            if rot is not None:
+                from fdeck.compile.problem import nodal_inertia
+
+                rot.set_inertia(nodal_inertia(groups, n))
             if problem.damping is not None:
                 problem.damping.mass[:] = m
                 problem.damping.alpha = plan.alpha
@@ -191,6 +227,8 @@ def _run(problem, sink: Sink, should_stop) -> Result:
                     raise RunStopped(f"stable time step is {dt:.3g} s", t)
                 dt_avg = 0.5 * (dt_prev + dt) if dt_prev > 0 else 0.5 * dt
                 kick(v, v_old, inv_m, f_ext, f_int, f_damp, dt_avg)
+                if rot is not None:
+                    kick_rot(rot.w, rot.w_old, rot.inv_I, rot.m_ext, rot.m_int, rot.m_damp, dt_avg)
                 for c in constraints:
                     c.constrain(t + dt, dt, x, v)
                 # ledger at t_n (kinetic energy needs v(n+1/2)), then positions move to t_(n+1)
@@ -198,6 +236,13 @@ def _run(problem, sink: Sink, should_stop) -> Result:
                                   res.cycles == 0)
                 w_ext += w
                 d_damp += dd
+                if rot is not None:
+                    w, dd, ke_rot = drift_rot(rot.d, rot.w, rot.w_old, rot.I, rot.m_ext, rot.m_int, rot.m_damp,
+                                              rot.me_prev, rot.md_prev, rot.dtheta, rot.reaction, dt, dt_avg,
+                                              res.cycles == 0)
+                    w_ext += w
+                    d_damp += dd
+                    ke += ke_rot
                 d_hg += p_hg * dt_avg
                 if energy0 is None:
                     energy0 = ke + internal
@@ -206,9 +251,15 @@ def _run(problem, sink: Sink, should_stop) -> Result:
                     raise RunStopped("non-finite energy (NaN or overflow in forces)", t)
                 if next_hist < len(hist_times) and t >= hist_times[next_hist] - 1e-12 * T:
                     row = [t, dt, ke, internal, se, hg + d_hg, d_damp, w_ext, err]
+                    if rot is not None:
+                        row.append(ke_rot)
+                    row += [sum(g.energy_part(c) for g in groups if c in getattr(g, "energy_parts", ()))
+                            for c in part_cols]
                     row += [sum(e.energy() for e in own[c]) for c in energy_cols]
                     for nodes in problem.reactions.values():
                         row += reaction[nodes].sum(axis=0).tolist()
+                        if rot is not None:
+                            row += rot.reaction[nodes].sum(axis=0).tolist()
                     t0 = timer.add("integrator", t0)
                     for meas in problem.measures:
                         row += meas.evaluate(x, v)
@@ -229,7 +280,10 @@ def _run(problem, sink: Sink, should_stop) -> Result:
                 dt_next = stable_dt(plan.dt_safety)
                 t0 = timer.add("stable step and monitors", t0)
                 if next_frame < len(frame_times) and t >= frame_times[next_frame] - 1e-12 * T:
-                    sink.frame(t, x, v)
+                    if rot is None:
+                        sink.frame(t, x, v)
+                    else:
+                        sink.frame(t, x, v, {"director": rot.d})
                     while next_frame < len(frame_times) and frame_times[next_frame] <= t + 1e-12 * T:
                         next_frame += 1
                     t0 = timer.add("output", t0)
@@ -248,4 +302,5 @@ def _run(problem, sink: Sink, should_stop) -> Result:
     res.timings = timer.acc
     res.final_positions = x  # the frame writer of an interrupted or failed run writes these
     res.final_velocities = v
+    res.final_directors = None if rot is None else rot.d
     return res

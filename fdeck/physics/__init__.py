@@ -1,6 +1,6 @@
 """Plug-ins: every material, element formulation and effect module, imported explicitly (each registers itself)."""
 
-from fdeck.physics.materials import elastic, fabric_hyper, neo_hookean  # noqa: F401
-from fdeck.physics.elements import hex8  # noqa: F401
+from fdeck.physics.materials import elastic, fabric_hyper, fabric_membrane, neo_hookean  # noqa: F401
+from fdeck.physics.elements import hex8, shell4  # noqa: F401
 from fdeck.physics.effects import boundary, fibre_bending, loads  # noqa: F401
 from fdeck.physics.measures import element_average, node_displacement, pin_jointed_shear, surface_waviness  # noqa: F401,E501

@@ -1,4 +1,4 @@
-"""External loads: gravity (body force from the physical, unscaled mass) and nodal forces."""
+"""External loads: gravity (body force from the physical, unscaled mass), nodal forces and nodal moments."""
 
 from __future__ import annotations
 
@@ -7,6 +7,7 @@ from typing import Literal
 import numpy as np
 from pydantic import Field
 
+from fdeck.compile.errors import CompileError
 from fdeck.deck.base import Card
 from fdeck.engine.effect import Effect
 from fdeck.registry import EffectKind, register_effect
@@ -57,5 +58,51 @@ def build_nodal_force(card, ctx):
                      ctx.amplitude(card.amplitude))
 
 
+class NodalMoment(Card):
+    """Concentrated moments on the shell nodes of a set [N mm], fixed in direction (not following the rotation).
+    Only the part normal to each node's current director acts: a shell node has no drilling stiffness, so a
+    component about the director could only spin it (it does no work on the director)."""
+
+    type: Literal["nodal_moment"]
+    nodes: str = Field(description="Node set name (its nodes with rotations, i.e. shell nodes, are loaded).")
+    moment: Vector = Field(description="Moment vector [N mm] about the global axes.")
+    distribution: Literal["per_node", "total"] = Field(
+        "per_node", description="per_node: every node gets `moment`; total: `moment` is split equally over the set.")
+    amplitude: str = Field("smooth", description="Amplitude name (see boundary `displacement`).")
+
+
+class Moment(Effect):
+    """External moments into the rotational state (its work enters the ledger through the rotation increments)."""
+
+    ledger = "external"
+    rotational = True
+
+    def __init__(self, name, nodes, per_node, amplitude):
+        self.name, self.nodes, self.per_node, self.amplitude = name, nodes, per_node, amplitude
+        self.rot = None
+
+    def bind(self, rotations) -> None:
+        self.rot = rotations
+
+    def add_force(self, t, x, v, f):
+        m = self.amplitude(t) * self.per_node
+        d = self.rot.d[self.nodes]
+        self.rot.m_ext[self.nodes] += m - np.einsum("ni,ni->n", m, d)[:, None] * d
+
+
+def build_nodal_moment(card, ctx):
+    nodes = ctx.node_set(card.nodes)
+    rotations = ctx.rotations
+    carriers = np.intersect1d(nodes, rotations.nodes) if rotations is not None else np.zeros(0, np.int64)
+    if len(carriers) == 0:
+        raise CompileError([(ctx.path + ("nodes",), f"set '{card.nodes}' has no node with rotations (shell nodes)")])
+    moment = np.asarray(card.moment, float)
+    if card.distribution == "total":
+        moment = moment / len(carriers)
+    return Moment(f"nodal_moment:{card.nodes}", carriers, np.tile(moment, (len(carriers), 1)),
+                  ctx.amplitude(card.amplitude))
+
+
 register_effect(EffectKind("gravity", Gravity, build_gravity, "loads"))
 register_effect(EffectKind("nodal_force", NodalForce, build_nodal_force, "loads"))
+register_effect(EffectKind("nodal_moment", NodalMoment, build_nodal_moment, "loads"))
