@@ -63,7 +63,8 @@ class EffectKind:
 class FormulationKind:
     """An element formulation (a way to turn nodal positions into forces for one element shape).
 
-    build(name, section card, X, conn, ids, material kind, params, frame, rho, cell_type) -> engine group object;
+    build(name, section card, X, conn, ids, material kind, params, orientation, rho, cell_type) -> engine group
+    object, with orientation a ``fdeck.compile.orientation.ElementOrientation`` (per-element fibre frame data);
     see fdeck.physics.elements.
     card: the pydantic section card of this formulation (``formulation: Literal[name]`` plus its own fields), or None
         for the solid section card of ``fdeck.deck.model`` (elements, material, orientation, hourglass).

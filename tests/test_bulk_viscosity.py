@@ -81,3 +81,29 @@ def test_bulk_viscosity_removes_the_ringing_behind_a_sharp_front():
         assert reflected.mean() == pytest.approx(two_rho_c_v, rel=0.01)
         peaks[key] = np.abs(h["reaction_xmin_x"]).max() / two_rho_c_v
     assert peaks["off"] > 1.1 and peaks["on"] < 1.01
+
+
+def test_bulk_viscosity_without_hexahedra_is_a_warning_not_silence(tmp_path):
+    """Requirement: nothing is ignored silently. A shell-only deck asking for bulk viscosity validates (exit 0)
+    with a warning located at the step's key (line 9) saying it will have no effect."""
+    import subprocess
+    import sys
+
+    from helpers import ROOT
+
+    deck = tmp_path / "shells.yaml"
+    deck.write_text("""\
+mesh:
+  plate: {size: [10, 10], divisions: [2, 2]}
+materials:
+  t300: {type: fabric_membrane, preset: t300_3k}
+sections:
+  - {material: t300, formulation: sm, preset: t300_3k}
+steps:
+  - duration: 1.0e-3
+    bulk_viscosity: {}
+""")
+    r = subprocess.run([sys.executable, "-m", "fdeck.cli", "validate", str(deck)], cwd=ROOT, capture_output=True,
+                       text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert f"{deck}:9:" in r.stderr and "warning" in r.stderr and "no effect" in r.stderr, r.stderr

@@ -18,13 +18,15 @@ SUPPORTED_TYPES = {"hexahedron": 8, "quad": 4, "triangle": 3}
 @dataclass
 class MeshArrays:
     """X (n_node, 3) [mm]; cells: cell type -> connectivity (n_el, k), 0-based; node_sets: name -> node indices;
-    element_sets: name -> (cell type, element indices in that block); ids: cell type -> user ids (n_el,)."""
+    element_sets: name -> (cell type, element indices in that block); ids: cell type -> user ids (n_el,);
+    cell_data: name -> cell type -> per-element values (n_el,) or (n_el, k) read from a mesh file."""
 
     X: np.ndarray
     cells: dict[str, np.ndarray]
     node_sets: dict[str, np.ndarray] = field(default_factory=dict)
     element_sets: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
     ids: dict[str, np.ndarray] = field(default_factory=dict)
+    cell_data: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
 
 
 def block(origin, size, divisions=None, element_size=None) -> MeshArrays:
@@ -108,6 +110,14 @@ def read_file(path: Path) -> MeshArrays:
         if es:
             m.element_sets[name] = es
     m.element_sets["all"] = {t: np.arange(len(c)) for t, c in m.cells.items()}
+    for name, per_block in mesh.cell_data.items():  # fields such as per-element fibre orientation
+        data = {}
+        for b, t, _ in block_of:
+            data.setdefault(t, []).append(np.asarray(per_block[b], float))
+        try:
+            m.cell_data[name] = {t: np.concatenate(v) for t, v in data.items()}
+        except ValueError:  # blocks disagree on the component count: unusable as one field, reported if used
+            continue
     return m
 
 

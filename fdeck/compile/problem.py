@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -12,6 +11,7 @@ from fdeck import registry
 from fdeck.compile import amplitude
 from fdeck.compile.errors import CompileError
 from fdeck.compile.mesh import MeshArrays, add_box_sets, block, plate, read_file
+from fdeck.compile.orientation import element_orientation
 from fdeck.deck.model import Deck
 
 
@@ -62,22 +62,6 @@ class Problem:
     @property
     def duration(self) -> float:
         return sum(s.duration for s in self.steps)
-
-
-def fibre_frame(orientation) -> np.ndarray:
-    """(3, 3) rows warp, weft, thickness from a deck Orientation."""
-    n = np.asarray(orientation.normal, float)
-    r = np.asarray(orientation.reference, float)
-    if np.linalg.norm(n) == 0:
-        raise ValueError("`normal` must not be zero")
-    n = n / np.linalg.norm(n)
-    r = r - (r @ n) * n
-    if np.linalg.norm(r) < 1e-9:
-        raise ValueError("`reference` is parallel to `normal`")
-    r /= np.linalg.norm(r)
-    a = math.radians(orientation.warp_angle)
-    warp = math.cos(a) * r + math.sin(a) * np.cross(n, r)
-    return np.array([warp, np.cross(n, warp), n])
 
 
 class Context:
@@ -133,10 +117,10 @@ def build_groups(deck: Deck, mesh: MeshArrays) -> list:
         kind = registry.MATERIALS[deck.materials[sec.material].type]
         card = deck.materials[sec.material]
         form = registry.FORMULATIONS[sec.formulation]
-        try:
-            frame = fibre_frame(sec.orientation)
-        except ValueError as exc:
-            problems.append((path + ("orientation",), str(exc)))
+        if sec.orientation.field is not None and sec.orientation.field not in mesh.cell_data:
+            where = "the mesh file" if deck.mesh.file else "a built-in mesh (fields come from a mesh file)"
+            problems.append((path + ("orientation", "field"), _missing(f"cell field in {where}:",
+                                                                       sec.orientation.field, mesh.cell_data)))
             continue
         if form.plane_stress and not kind.plane_stress:
             known = sorted(k for k, v in registry.MATERIALS.items() if v.plane_stress)
@@ -157,10 +141,17 @@ def build_groups(deck: Deck, mesh: MeshArrays) -> list:
             owner[ctype][idx] = i
             conn, ids = mesh.cells[ctype][idx], mesh.ids[ctype][idx]
             params = np.broadcast_to(kind.pack(card), (len(idx), len(kind.pack(card))))
-            frames = np.ascontiguousarray(np.broadcast_to(frame, (len(idx), 3, 3)))
+            try:
+                field = mesh.cell_data[sec.orientation.field][ctype][idx] if sec.orientation.field else None
+                orient = element_orientation(sec.orientation, len(idx), field)
+                if not form.plane_stress:  # solids check the frames here; shells build theirs per Gauss point
+                    orient.frames()
+            except (ValueError, KeyError) as exc:
+                problems.append((path + ("orientation",), str(exc)))
+                continue
             rho = np.full(len(idx), card.density)
             try:
-                g = form.build(f"section{i}:{sec.elements}", sec, mesh.X, conn, ids, kind, params, frames, rho, ctype)
+                g = form.build(f"section{i}:{sec.elements}", sec, mesh.X, conn, ids, kind, params, orient, rho, ctype)
             except CompileError as exc:  # the element reports its own problems relative to the section
                 problems += [(path + tuple(p), m) for p, m in exc.problems]
                 continue

@@ -327,6 +327,12 @@ def cross_reference_problems(deck: Deck) -> list[tuple[tuple, str, str]]:
     for name in deck.materials:
         if name not in used:
             out.append((("materials", name), f"material '{name}' is not used by any section", "warning"))
+    solids = any("hexahedron" in registry.FORMULATIONS[s.formulation].cell_types for s in deck.sections
+                 if s.formulation in registry.FORMULATIONS)
+    for i, st in enumerate(deck.steps):
+        if st.bulk_viscosity is not None and not solids:
+            out.append((("steps", i, "bulk_viscosity"), "bulk viscosity acts on hexahedra only and no section has "
+                        "them: it will have no effect", "warning"))
     return out
 
 

@@ -23,6 +23,9 @@ class Orientation(Card):
     warp_angle: float = Field(0.0, description="Angle of the warp from the reference direction [deg].")
     normal: Vector = Field((0.0, 0.0, 1.0), description="Sheet normal (thickness direction).")
     reference: Vector = Field((1.0, 0.0, 0.0), description="Direction of warp at angle 0 (projected).")
+    field: str | None = Field(None, description="Cell field of the mesh file varying the orientation per element: "
+                              "1 component = warp angle [deg] added to `warp_angle`, 3 components = `reference` "
+                              "per element.")
 
 
 class SectionBase(Card):

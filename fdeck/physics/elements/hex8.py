@@ -406,14 +406,14 @@ class Hex8Group:
         return out
 
 
-def build(name, section, X, conn, ids, material, params, frame, rho, cell_type):
+def build(name, section, X, conn, ids, material, params, orientation, rho, cell_type):
     """Registry hook: a Hex8Group for one section card (``reduced`` gets default hourglass control if none given)."""
     hourglass = section.hourglass
     if section.formulation == "reduced" and hourglass is None:
         from fdeck.deck.model import Hourglass
 
         hourglass = Hourglass()
-    return Hex8Group(name, section.formulation, X, conn, ids, material, params, frame, rho, hourglass)
+    return Hex8Group(name, section.formulation, X, conn, ids, material, params, orientation.frames(), rho, hourglass)
 
 
 for _name, _doc in (("full", "2x2x2 Gauss integration"),

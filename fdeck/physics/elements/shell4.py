@@ -186,23 +186,24 @@ def through_thickness(rule: str, n: int, h: float) -> tuple[np.ndarray, np.ndarr
 def local_bases(Xe: np.ndarray, orientation) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """-> (e1, e2, N (n_el, 4, 3) at the Gauss points, bad (n_el,) bool).
 
-    N is the unit mid-surface normal from the node order; e1 (warp) is the section's reference direction projected
-    on the tangent plane and turned by warp_angle about N taken on the side of the orientation normal; e2 (weft) =
-    (that normal) x e1. ``bad``: reference direction (nearly) normal to the element.
+    orientation: ``fdeck.compile.orientation.ElementOrientation`` (reference (n_el, 3), warp_angle (n_el,) [deg],
+    normal (3,)). N is the unit mid-surface normal from the node order; e1 (warp) is the element's reference
+    direction projected on the tangent plane and turned by its warp angle about N taken on the side of the
+    orientation normal; e2 (weft) = (that normal) x e1. ``bad``: reference direction (nearly) normal to the element.
     """
     Xxi = np.einsum("gaj,eai->egji", DN_GP, Xe)  # (n_el, 4, 2, 3): X,xi and X,eta
     n = np.cross(Xxi[:, :, 0], Xxi[:, :, 1])
     N = n / np.linalg.norm(n, axis=-1, keepdims=True)
-    r = np.asarray(orientation.reference, float)
-    rp = r - np.einsum("egi,i->eg", N, r)[..., None] * N
+    r = np.asarray(orientation.reference, float)[:, None, :]  # (n_el, 1, 3)
+    rp = r - np.sum(N * r, axis=-1, keepdims=True) * N
     norm = np.linalg.norm(rp, axis=-1)
-    bad = (norm < 1e-6 * np.linalg.norm(r)).any(axis=1)
+    bad = (norm < 1e-6 * np.linalg.norm(r, axis=-1)).any(axis=1)
     rp = rp / np.where(norm > 0, norm, 1.0)[..., None]
     side = np.sign(np.einsum("egi,i->eg", N, np.asarray(orientation.normal, float)))
     side = np.where(side == 0, 1.0, side)[..., None]
-    a = math.radians(orientation.warp_angle)
+    a = np.radians(np.asarray(orientation.warp_angle, float))[:, None, None]  # (n_el, 1, 1)
     sN = side * N
-    e1 = math.cos(a) * rp + math.sin(a) * np.cross(sN, rp)
+    e1 = np.cos(a) * rp + np.sin(a) * np.cross(sN, rp)
     e2 = np.cross(sN, e1)
     return e1, e2, N, bad
 
@@ -570,7 +571,7 @@ class ShellGroup:
 
     nodes_per_element = 4
 
-    def __init__(self, name, section, X, conn, ids, material, params, rho, cell_type):
+    def __init__(self, name, section, X, conn, ids, material, params, rho, cell_type, orientation=None):
         from fdeck.engine.gather import node_slots
 
         self.name, self.section, self.material = name, section, material
@@ -591,7 +592,11 @@ class ShellGroup:
             z, wz = np.zeros(1), np.array([h])
         self.z, self.wz = z, wz
         self.Xe = X[self.conn]
-        self.e1, self.e2, self.N, bad = local_bases(self.Xe, section.orientation)
+        if orientation is None:
+            from fdeck.compile.orientation import element_orientation
+
+            orientation = element_orientation(section.orientation, n_el)
+        self.e1, self.e2, self.N, bad = local_bases(self.Xe, orientation)
         if bad.any():
             raise CompileError([(("orientation", "reference"), f"reference direction is normal to {int(bad.sum())} "
                                  f"elements, ids {ids[bad][:10].tolist()}")])
@@ -854,9 +859,9 @@ class ShellGroup:
         return out
 
 
-def build(name, section, X, conn, ids, material, params, frame, rho, cell_type):
-    """Registry hook: a ShellGroup for one shell section (its own per-point frames from the section orientation)."""
-    return ShellGroup(name, section, X, conn, ids, material, params, rho, cell_type)
+def build(name, section, X, conn, ids, material, params, orientation, rho, cell_type):
+    """Registry hook: a ShellGroup for one shell section (its own per-point frames from the element orientation)."""
+    return ShellGroup(name, section, X, conn, ids, material, params, rho, cell_type, orientation)
 
 
 for _name, _card, _doc in (
