@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import copy
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -37,3 +40,43 @@ def merge(data: dict, **changes) -> dict:
     out = copy.deepcopy(data)
     out.update(changes)
     return out
+
+
+def digests_on_one_and_two_threads(script: str, *args: str) -> set:
+    """Run ``python -c script *args`` from the repository root with NUMBA_NUM_THREADS=1, then 2; the script prints
+    its thread count and a digest of its results. Each run must succeed on the threads asked for; returns the set of
+    digests (one element when the runs are bitwise equal)."""
+    digests = set()
+    for threads in ("1", "2"):
+        env = dict(os.environ, NUMBA_NUM_THREADS=threads)
+        r = subprocess.run([sys.executable, "-c", script, *args], cwd=ROOT, env=env, capture_output=True, text=True,
+                           timeout=600)
+        assert r.returncode == 0, r.stderr
+        n, digest = r.stdout.split()
+        assert n == threads, f"asked for {threads} threads, ran on {n}"
+        digests.add(digest)
+    return digests
+
+
+def central_gradient(f, x: np.ndarray, h: float) -> np.ndarray:
+    """df/dx of a scalar function of an array by central differences: (f(x + h e) - f(x - h e)) / 2h, entry by
+    entry (x + h e evaluated before x - h e); shaped as x."""
+    g = np.zeros(np.shape(x))
+    for idx in np.ndindex(g.shape):
+        xp, xm = x.copy(), x.copy()
+        xp[idx] += h
+        xm[idx] -= h
+        g[idx] = (f(xp) - f(xm)) / (2 * h)
+    return g
+
+
+def symmetric_central_gradient(f, C: np.ndarray, h: float) -> np.ndarray:
+    """df/dC of a scalar function of a symmetric 3 x 3 C by central differences, with the symmetric convention:
+    C_ij and C_ji perturbed together by h/2 each (by h on the diagonal)."""
+    g = np.zeros((3, 3))
+    for i, j in np.ndindex(3, 3):
+        E = np.zeros((3, 3))
+        E[i, j] += 0.5 * h
+        E[j, i] += 0.5 * h
+        g[i, j] = (f(C + E) - f(C - E)) / (2 * h)
+    return g

@@ -2,13 +2,9 @@
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
-
 import pytest
 
-from helpers import ROOT
+from helpers import digests_on_one_and_two_threads
 
 pytestmark = pytest.mark.unit
 
@@ -34,13 +30,4 @@ print(numba.get_num_threads(), hashlib.sha256(r.final_positions.tobytes()).hexdi
 @pytest.mark.parametrize("form", ["fbar", "reduced"])
 def test_results_identical_on_one_and_two_threads(form):
     """Requirement: final positions are bitwise equal with NUMBA_NUM_THREADS=1 and 2."""
-    digests = set()
-    for threads in ("1", "2"):
-        env = dict(os.environ, NUMBA_NUM_THREADS=threads)
-        r = subprocess.run([sys.executable, "-c", SCRIPT, form], cwd=ROOT, env=env, capture_output=True, text=True,
-                           timeout=600)
-        assert r.returncode == 0, r.stderr
-        n, digest = r.stdout.split()
-        assert n == threads
-        digests.add(digest)
-    assert len(digests) == 1
+    assert len(digests_on_one_and_two_threads(SCRIPT, form)) == 1

@@ -12,6 +12,8 @@ from pydantic import ValidationError
 
 import fdeck.physics.materials.fabric_hyper as fh
 
+from helpers import central_gradient, symmetric_central_gradient
+
 NO_STATE = np.zeros(0)
 MODE_NAMES = fh.MODES
 
@@ -94,28 +96,6 @@ def random_F(rng, amp, frame, preset):
             return F
 
 
-def fd_dpsi_dC(fun, C, h):
-    """dfun/dC_ij with the symmetric convention: C_ij and C_ji perturbed together by h/2 each."""
-    out = np.zeros((3, 3))
-    for i in range(3):
-        for j in range(3):
-            E = np.zeros((3, 3))
-            E[i, j] += 0.5 * h
-            E[j, i] += 0.5 * h
-            out[i, j] = (fun(C + E) - fun(C - E)) / (2 * h)
-    return out
-
-
-def fd_dpsi_dF(F, frame, p, h):
-    out = np.zeros((3, 3))
-    for i in range(3):
-        for j in range(3):
-            E = np.zeros((3, 3))
-            E[i, j] = h
-            out[i, j] = (psi_of_F(F + E, frame, p) - psi_of_F(F - E, frame, p)) / (2 * h)
-    return out
-
-
 def rel(a, b):
     return np.linalg.norm(a - b) / np.linalg.norm(b)
 
@@ -174,7 +154,7 @@ def test_S_is_2_dpsi_dC_large_deformations(preset):
         F = random_F(rng, 0.2, frame, preset)
         P, _, _ = evaluate(F, frame, p)
         S = np.linalg.solve(F, P)
-        S_fd = 2 * fd_dpsi_dC(lambda C: psi_of_F(F_of_C(C), frame, p), F.T @ F, 1e-6)
+        S_fd = 2 * symmetric_central_gradient(lambda C: psi_of_F(F_of_C(C), frame, p), F.T @ F, 1e-6)
         assert rel(S, S_fd) < 1e-6
         assert np.abs(S - S.T).max() <= 1e-10 * np.abs(S).max()  # S symmetric up to round-off
 
@@ -187,7 +167,7 @@ def test_P_is_dpsi_dF(preset):
     for _ in range(6):
         frame = random_frame(rng)
         F = random_F(rng, 0.2, frame, preset)
-        assert rel(evaluate(F, frame, p)[0], fd_dpsi_dF(F, frame, p, 1e-6)) < 1e-6
+        assert rel(evaluate(F, frame, p)[0], central_gradient(lambda G: psi_of_F(G, frame, p), F, 1e-6)) < 1e-6
 
 
 @pytest.mark.parametrize("k", range(6))
@@ -206,7 +186,7 @@ def test_each_dI_dC_against_fd_of_definition(k):
     assert inv[0] > 0 and inv[1] > 0 and abs(inv[3]) > 0.2  # stretch modes in tension, I412 clearly non-zero
     S = np.linalg.solve(F, evaluate(F, frame, p)[0])
     sign = np.sign(inv[k]) if k >= 3 else 1.0
-    dI_fd = fd_dpsi_dC(lambda Cp: ref_invariants(Cp, frame)[k], C, 1e-6)
+    dI_fd = symmetric_central_gradient(lambda Cp: ref_invariants(Cp, frame)[k], C, 1e-6)
     assert rel(S / 2, sign * dI_fd) < 1e-7
     if k == 2:  # the simplified factor of [P] (C^-1 - M11/I41 - M22/I42) really is different here
         G = frame @ C @ frame.T

@@ -14,6 +14,8 @@ from pydantic import ValidationError
 import fdeck.physics  # noqa: F401  (registers plug-ins)
 import fdeck.physics.materials.fabric_membrane as fm
 
+from helpers import central_gradient, symmetric_central_gradient
+
 pytestmark = pytest.mark.conformance
 NO_STATE = np.zeros(0)
 
@@ -64,19 +66,8 @@ def test_S_is_2_dpsi_dC(name):
         F, frame = random_state(rng, 0.08)
         P, psi, _ = evaluate(F, frame, p)
         S = np.linalg.solve(F, P)
-        C = F.T @ F
-        h = 1e-7
-        S_fd = np.zeros((3, 3))
-        for i in range(3):
-            for j in range(3):
-                dC = np.zeros((3, 3))
-                dC[i, j] += 0.5 * h
-                dC[j, i] += 0.5 * h
-                vals = []
-                for sgn in (1, -1):
-                    Fp = np.linalg.cholesky(C + sgn * dC).T  # psi depends on C only (objective law)
-                    vals.append(evaluate(Fp, frame, p)[1])
-                S_fd[i, j] = (vals[0] - vals[1]) / h  # 2 dpsi/dC_ij with the symmetric perturbation
+        # psi depends on C only (objective law): evaluated at F = chol(C)^T
+        S_fd = 2 * symmetric_central_gradient(lambda C: evaluate(np.linalg.cholesky(C).T, frame, p)[1], F.T @ F, 1e-7)
         # psi ~ 1..100 MPa, h = 1e-7: round-off 1e-16 * 100 / 1e-7 = 1e-7 of S (~1e2 MPa): 1e-6 leaves margin
         assert np.abs(S - S_fd).max() < 1e-6 * max(np.abs(S).max(), 1.0)
 
@@ -89,13 +80,7 @@ def test_P_is_dpsi_dF(name):
     for _ in range(10):
         F, frame = random_state(rng, 0.08)
         P = evaluate(F, frame, p)[0]
-        h = 1e-7
-        P_fd = np.zeros((3, 3))
-        for i in range(3):
-            for j in range(3):
-                dF = np.zeros((3, 3))
-                dF[i, j] = h
-                P_fd[i, j] = (evaluate(F + dF, frame, p)[1] - evaluate(F - dF, frame, p)[1]) / (2 * h)
+        P_fd = central_gradient(lambda G: evaluate(G, frame, p)[1], F, 1e-7)
         assert np.abs(P - P_fd).max() < 1e-6 * max(np.abs(P).max(), 1.0)
 
 

@@ -8,9 +8,6 @@ free-vibration run, thread-independent results, and located errors for bad input
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
 from textwrap import dedent
 from types import SimpleNamespace
 
@@ -23,7 +20,7 @@ from fdeck.physics.effects.fibre_bending import FibreBending, bending_law, build
 from fdeck.physics.elements.hex8 import Hex8Group
 from fdeck.registry import MATERIALS
 
-from helpers import ROOT, run_data
+from helpers import central_gradient, digests_on_one_and_two_threads, run_data
 
 pytestmark = pytest.mark.conformance
 
@@ -179,15 +176,11 @@ def test_forces_are_the_energy_gradient(laws):
     _, eff = make(X, conn, laws, WARP_X)
     x = cylinder(X, 15.0) + 0.15 * np.random.default_rng(7).normal(size=X.shape)
     f = forces(eff, x)
-    h = 1e-6
-    fd = np.zeros_like(x)
-    for n in range(len(x)):
-        for i in range(3):
-            for s in (1, -1):
-                xp = x.copy()
-                xp[n, i] += s * h
-                forces(eff, xp)
-                fd[n, i] += s * eff.energy() / (2 * h)
+
+    def energy(y):
+        forces(eff, y)
+        return eff.energy()
+    fd = central_gradient(energy, x, h=1e-6)
     assert np.abs(fd).max() > 1e-3  # the state is really bent
     assert np.abs(f - fd).max() < 1e-6 * np.abs(fd).max()
 
@@ -365,16 +358,7 @@ print(numba.get_num_threads(), hashlib.sha256(r.final_positions.tobytes()).hexdi
 @pytest.mark.unit
 def test_results_identical_on_one_and_two_threads():
     """Requirement: with fibre bending, final positions are bitwise equal with NUMBA_NUM_THREADS=1 and 2."""
-    digests = set()
-    for threads in ("1", "2"):
-        env = dict(os.environ, NUMBA_NUM_THREADS=threads)
-        r = subprocess.run([sys.executable, "-c", DETERMINISM], cwd=ROOT, env=env, capture_output=True, text=True,
-                           timeout=600)
-        assert r.returncode == 0, r.stderr
-        n, digest = r.stdout.split()
-        assert n == threads
-        digests.add(digest)
-    assert len(digests) == 1
+    assert len(digests_on_one_and_two_threads(DETERMINISM)) == 1
 
 
 BAD_CARDS = dedent("""\

@@ -3,14 +3,13 @@ and decks without shells untouched by the rotational machinery."""
 
 from __future__ import annotations
 
-import os
 import subprocess
 import sys
 
 import numpy as np
 import pytest
 
-from helpers import ROOT, run_data
+from helpers import ROOT, digests_on_one_and_two_threads, run_data
 from shell_helpers import linear_fabric
 
 pytestmark = pytest.mark.unit
@@ -43,16 +42,7 @@ print(numba.get_num_threads(), h)
 def test_shell_results_identical_on_one_and_two_threads(form):
     """Requirement: final positions and directors of a shell run (400 elements, 60 cycles, damping) are bitwise
     equal with NUMBA_NUM_THREADS=1 and 2 (per-element buffers and the fixed-order gather, for moments too)."""
-    digests = set()
-    for threads in ("1", "2"):
-        env = dict(os.environ, NUMBA_NUM_THREADS=threads)
-        r = subprocess.run([sys.executable, "-c", SCRIPT, form], cwd=ROOT, env=env, capture_output=True, text=True,
-                           timeout=600)
-        assert r.returncode == 0, r.stderr
-        n, digest = r.stdout.split()
-        assert n == threads
-        digests.add(digest)
-    assert len(digests) == 1
+    assert len(digests_on_one_and_two_threads(SCRIPT, form)) == 1
 
 
 def mixed_mesh(path):

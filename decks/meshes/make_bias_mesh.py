@@ -50,11 +50,13 @@ def diamond_mesh(W: float, H: float, n: int, thickness: float, grip: float):
     return pts, hexes, node_sets, {"CENTRE": centre}
 
 
-def write_inp(path: Path, pts, hexes, node_sets, elem_sets) -> None:
-    lines = ["*HEADING", f"fdeck bias-extension mesh {path.name}", "*NODE"]
+def write_inp(path: Path, pts, cells, node_sets, elem_sets, element_type: str = "C3D8",
+              heading: str = "fdeck bias-extension mesh") -> None:
+    """Abaqus .inp: nodes, the cells as element set ALL of ``element_type``, then the node and element sets."""
+    lines = ["*HEADING", f"{heading} {path.name}", "*NODE"]
     lines += [f"{i + 1}, {p[0]:.10g}, {p[1]:.10g}, {p[2]:.10g}" for i, p in enumerate(pts)]
-    lines.append("*ELEMENT, TYPE=C3D8, ELSET=ALL")
-    lines += [f"{e + 1}, " + ", ".join(str(v + 1) for v in c) for e, c in enumerate(hexes)]
+    lines.append(f"*ELEMENT, TYPE={element_type}, ELSET=ALL")
+    lines += [f"{e + 1}, " + ", ".join(str(v + 1) for v in c) for e, c in enumerate(cells)]
     for name, ids in node_sets.items():
         lines.append(f"*NSET, NSET={name}")
         lines += [", ".join(str(i + 1) for i in ids[k: k + 16]) for k in range(0, len(ids), 16)]

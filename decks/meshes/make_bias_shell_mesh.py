@@ -12,9 +12,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
 
-from make_bias_mesh import diamond_mesh
+from make_bias_mesh import diamond_mesh, write_inp as write_lattice_inp
 
 
 def shell_mesh(W: float, H: float, n: int):
@@ -25,17 +24,9 @@ def shell_mesh(W: float, H: float, n: int):
 
 
 def write_inp(path: Path, pts, quads, node_sets, elem_sets) -> None:
-    lines = ["*HEADING", f"fdeck bias-extension shell mesh {path.name}", "*NODE"]
-    lines += [f"{i + 1}, {p[0]:.10g}, {p[1]:.10g}, {p[2]:.10g}" for i, p in enumerate(pts)]
-    lines.append("*ELEMENT, TYPE=S4R, ELSET=ALL")
-    lines += [f"{e + 1}, " + ", ".join(str(v + 1) for v in c) for e, c in enumerate(quads)]
-    for name, ids in node_sets.items():
-        lines.append(f"*NSET, NSET={name}")
-        lines += [", ".join(str(i + 1) for i in ids[k: k + 16]) for k in range(0, len(ids), 16)]
-    for name, ids in elem_sets.items():
-        lines.append(f"*ELSET, ELSET={name}")
-        lines += [", ".join(str(i + 1) for i in ids[k: k + 16]) for k in range(0, len(ids), 16)]
-    path.write_text("\n".join(lines) + "\n")
+    """The mesh of ``shell_mesh`` as an Abaqus .inp of S4R shells."""
+    write_lattice_inp(path, pts, quads, node_sets, elem_sets, element_type="S4R",
+                      heading="fdeck bias-extension shell mesh")
 
 
 if __name__ == "__main__":
