@@ -66,12 +66,12 @@ from importlib import resources
 from typing import Literal
 
 import numpy as np
-import yaml
 from pydantic import Field, model_validator
 
 from fdeck.compile.errors import CompileError
 from fdeck.deck.section import SectionBase
 from fdeck.jit import njit, njit_parallel, prange
+from fdeck.physics import presets
 from fdeck.registry import FormulationKind, register_formulation
 
 SIGNS = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
@@ -98,11 +98,8 @@ PRESET_DIR = resources.files(__package__).joinpath("presets")
 
 def load_section_preset(kind: str, name: str) -> dict:
     """Fields of section preset ``name`` of formulation ``kind`` (presets/<kind>/<name>.yaml)."""
-    folder = PRESET_DIR.joinpath(kind)
-    names = sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".yaml"))
-    if name not in names:
-        raise ValueError(f"unknown {kind} preset {name!r}; available presets: {', '.join(names)}")
-    return yaml.safe_load(folder.joinpath(f"{name}.yaml").read_text()) or {}
+    allowed = {"sm": SmSection, "ts": TsSection, "membrane": MembraneSection}[kind].model_fields
+    return presets.load(PRESET_DIR.joinpath(kind), name, allowed, f"{kind} section")
 
 
 class _ShellSection(SectionBase):
@@ -118,9 +115,6 @@ class _ShellSection(SectionBase):
         if not PRESET_DIR.joinpath(kind).is_dir():
             raise ValueError(f"formulation {kind!r} has no presets")
         merged = load_section_preset(kind, data["preset"])
-        bad = sorted(set(merged) - set(cls.model_fields))
-        if bad:
-            raise ValueError(f"preset {data['preset']!r} has keys {bad} that are not fields of this section")
         merged.update({k: v for k, v in data.items() if v is not None})
         return merged
 

@@ -36,11 +36,11 @@ from typing import Annotated, ClassVar, Literal, Union
 
 import numba
 import numpy as np
-import yaml
 from pydantic import Field, FiniteFloat, model_validator
 
 from fdeck.deck.base import Card, MaterialCard
 from fdeck.jit import FLAGS, njit, njit_parallel, prange
+from fdeck.physics import presets
 from fdeck.registry import MaterialKind, register_material
 
 MODES = ("warp", "weft", "compaction", "in_plane_shear", "transverse_shear_warp", "transverse_shear_weft")
@@ -209,20 +209,12 @@ def _pad5(a: list[float]) -> list[float]:
 
 def available_presets() -> list[str]:
     """Names (file stems) of the YAML files in PRESET_DIR."""
-    return sorted(p.name[:-5] for p in PRESET_DIR.iterdir() if p.name.endswith(".yaml"))
+    return presets.names(PRESET_DIR)
 
 
 def load_preset(name: str) -> dict:
     """Card fields of preset ``name`` (a fresh dict). Unknown name or unknown key -> ValueError."""
-    names = available_presets()
-    if name not in names:
-        raise ValueError(f"unknown preset {name!r}; available presets: {', '.join(names)}")
-    data = yaml.safe_load(PRESET_DIR.joinpath(f"{name}.yaml").read_text()) or {}
-    allowed = {"density", "compression_ratio", *MODES}
-    bad = sorted(set(data) - allowed)
-    if bad:
-        raise ValueError(f"preset {name!r} has keys {bad} that are not fabric_hyper fields {sorted(allowed)}")
-    return data
+    return presets.load(PRESET_DIR, name, {"density", "compression_ratio", *MODES}, "fabric_hyper")
 
 
 # ----------------------------------------------------------------------------------------------------------------

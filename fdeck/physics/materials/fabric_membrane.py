@@ -68,11 +68,11 @@ from typing import Annotated, Literal
 
 import numba
 import numpy as np
-import yaml
 from pydantic import Field, FiniteFloat, model_validator
 
 from fdeck.deck.base import Card, MaterialCard
 from fdeck.jit import FLAGS, njit, njit_parallel, prange
+from fdeck.physics import presets
 from fdeck.registry import MaterialKind, register_material
 
 MAX_POINTS = 16
@@ -152,18 +152,11 @@ class ShearCurve(Card):
 
 
 def available_presets() -> list[str]:
-    return sorted(p.name[:-5] for p in PRESET_DIR.iterdir() if p.name.endswith(".yaml"))
+    return presets.names(PRESET_DIR)
 
 
 def load_preset(name: str) -> dict:
-    names = available_presets()
-    if name not in names:
-        raise ValueError(f"unknown preset {name!r}; available presets: {', '.join(names)}")
-    data = yaml.safe_load(PRESET_DIR.joinpath(f"{name}.yaml").read_text()) or {}
-    bad = sorted(set(data) - {"density", "warp", "weft", "shear"})
-    if bad:
-        raise ValueError(f"preset {name!r} has keys {bad} that are not fabric_membrane fields")
-    return data
+    return presets.load(PRESET_DIR, name, {"density", "warp", "weft", "shear"}, "fabric_membrane")
 
 
 class FabricMembrane(MaterialCard):
