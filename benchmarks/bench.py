@@ -1,9 +1,11 @@
 """Performance harness (not part of the test suite).
 
-Measures, per hexahedron formulation and material, on structured blocks of about 10 k and 100 k elements:
+Measures, per hexahedron formulation and material (and the two fabric shells, on square plates of as many
+elements), on structured blocks of about 10 k and 100 k elements:
 microseconds per element-cycle of the whole explicit cycle (elements, gather, integrator, monitors) after a
-warm-up, on one thread and on all threads; element-array memory per element; numba compile time (cold cache) and
-cached start-up of `fdeck run` on a small deck. Writes benchmarks/results.json.
+warm-up, on one thread and on all threads; element-array memory per element; cost per element-cycle from 2.5 k
+to 410 k elements (linearity); numba compile time (cold cache) and cached start-up of `fdeck run` on a small deck.
+Writes benchmarks/results.json.
 
     python benchmarks/bench.py            # full run (about 10 minutes on 2 cores)
     python benchmarks/bench.py --quick    # 10 k elements only
@@ -29,12 +31,32 @@ MATERIALS = {
     "linear_elastic": {"type": "linear_elastic", "density": 1e-9, "youngs_modulus": 1.0e4, "poisson_ratio": 0.3},
     "neo_hookean": {"type": "neo_hookean", "density": 1e-9, "youngs_modulus": 1.0e4, "poisson_ratio": 0.3},
     "fabric_hyper_3weave": {"type": "fabric_hyper", "preset": "3weave"},
+    "fabric_membrane_t300": {"type": "fabric_membrane", "preset": "t300_3k"},
+    "fabric_membrane_t300_ts": {"type": "fabric_membrane", "preset": "t300_3k_ts"},
 }
 CASES = [("reduced", "linear_elastic"), ("full", "linear_elastic"), ("fbar", "linear_elastic"),
-         ("fbar", "neo_hookean"), ("fbar", "fabric_hyper_3weave"), ("reduced", "fabric_hyper_3weave")]
+         ("fbar", "neo_hookean"), ("fbar", "fabric_hyper_3weave"), ("reduced", "fabric_hyper_3weave"),
+         ("sm", "fabric_membrane_t300"), ("ts", "fabric_membrane_t300_ts")]
+SHELLS = ("sm", "ts", "membrane")
+
+
+def shell_deck(form: str, mat: str, divisions, cycles: int) -> dict:
+    """A square plate of n x n shells (n * n = the hexahedral block's element count), pulled along x."""
+    n = int(round((divisions[0] * divisions[1] * divisions[2]) ** 0.5))
+    return {
+        "mesh": {"plate": {"size": [float(n), float(n)], "divisions": [n, n]}},
+        "materials": {"m": MATERIALS[mat]},
+        "sections": [{"material": "m", "formulation": form, "preset": "t300_3k"}],
+        "boundary": [{"type": "fixed", "nodes": "xmin", "dofs": ["x", "y", "z", "rx", "ry", "rz"]},
+                     {"type": "velocity", "nodes": "xmax", "dofs": ["x"], "value": 1.0, "amplitude": "constant"}],
+        "steps": [{"duration": 1.0, "max_cycles": cycles}],
+        "output": {"frames": 1, "history_points": 2},
+    }
 
 
 def deck(form: str, mat: str, divisions, cycles: int) -> dict:
+    if form in SHELLS:
+        return shell_deck(form, mat, divisions, cycles)
     return {
         "mesh": {"block": {"size": [float(d) for d in divisions], "divisions": list(divisions)}},
         "materials": {"m": MATERIALS[mat]},
@@ -47,7 +69,7 @@ def deck(form: str, mat: str, divisions, cycles: int) -> dict:
 
 
 def measure(form: str, mat: str, divisions, cycles: int, threads: int) -> dict:
-    """Time `cycles` cycles after a 3-cycle warm-up (compilation) in this process."""
+    """Time `cycles` cycles after a 3-cycle warm-up of the same problem in this process."""
     import numba
     import numpy as np
 
@@ -56,9 +78,12 @@ def measure(form: str, mat: str, divisions, cycles: int, threads: int) -> dict:
     from fdeck.engine import solver
 
     numba.set_num_threads(threads)
-    d = Deck.model_validate(deck(form, mat, divisions, 3))
-    solver.run(compile_deck(d), solver.Sink())  # warm-up: compile or load the cache
     problem = compile_deck(Deck.model_validate(deck(form, mat, divisions, cycles)))
+    # warm-up on the same problem: compiles (or loads the cache) and touches every element buffer once, so the
+    # timed cycles see neither compilation nor first-touch page faults (which weigh on short runs of big models)
+    problem.steps[0].max_cycles = 3
+    solver.run(problem, solver.Sink())
+    problem.steps[0].max_cycles = cycles
     t0 = time.perf_counter()
     res = solver.run(problem, solver.Sink())
     wall = time.perf_counter() - t0
@@ -105,6 +130,11 @@ def report(result: dict) -> str:
         sp = f"{one['us_per_element_cycle'] / two['us_per_element_cycle']:.2f}" if one and two else "-"
         mem = (one or two)["bytes_per_element"]
         lines.append(f"| {form} | {mat} | {n} | {t1} | {t2} | {sp} | {mem:.0f} |")
+    sc = result.get("scaling", [])
+    if sc:
+        lines.append("")
+        lines.append("Cost per element-cycle against model size (reduced, linear elastic, 1 thread): " + ", ".join(
+            f"{r['elements']:,} el. {r['us_per_element_cycle']:.3f} us" for r in sc) + ".")
     s = result.get("startup", {})
     if s:
         lines.append("")
@@ -143,9 +173,16 @@ def main():
                 print(f"{form:8s} {mat:22s} {row['elements']:7d} el  {threads} thr  "
                       f"{row['us_per_element_cycle']:.3f} us/el-cycle  ({row['us_per_element_cycle_elements_only']:.3f}"
                       f" in elements)  {row['bytes_per_element']:.0f} B/el", flush=True)
+    scaling = []
+    if not args.quick:  # is the cost per cycle linear in the element count (constant per element-cycle)?
+        for div, cycles in (((25, 25, 4), 200), ((50, 50, 4), 200), ((100, 100, 4), 60), ((320, 320, 4), 20)):
+            r = subprocess.run([sys.executable, __file__, "--one", "reduced", "linear_elastic",
+                                ",".join(map(str, div)), str(cycles), "1"], capture_output=True, text=True, cwd=ROOT)
+            if r.returncode == 0:
+                scaling.append(json.loads(r.stdout.strip().splitlines()[-1]))
     result = {"machine": {"cpu_count": os.cpu_count(), "platform": platform.platform(),
                           "python": platform.python_version()},
-              "runs": rows, "startup": compile_times()}
+              "runs": rows, "scaling": scaling, "startup": compile_times()}
     print(json.dumps(result["startup"]))
     (HERE / "results.json").write_text(json.dumps(result, indent=1) + "\n")
 
