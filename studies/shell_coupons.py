@@ -134,7 +134,7 @@ def variant(coupon: str, size: float) -> Path:
 
 
 SIZES = {"bending_sm_0": (4.0, 2.0, 1.0), "bending_ts_0": (4.0, 2.0, 1.0),
-         "bending_sm_45": (4.0, 2.0, 1.0), "bending_ts_45": (4.0, 2.0)}
+         "bending_sm_45": (4.0, 2.0, 1.0), "bending_ts_45": (4.0, 2.0, 1.0)}
 
 
 def run_table(which):

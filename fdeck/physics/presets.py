@@ -25,3 +25,13 @@ def load(folder, name: str, allowed, what: str) -> dict:
     if bad:
         raise ValueError(f"preset {name!r} has keys {bad} that are not {what} fields {sorted(allowed)}")
     return data
+
+
+def merged(data, load_preset):
+    """Card data laid over the preset it names (deck keys win; keys given as null fall back to the preset), or the
+    data unchanged when it names none. For a pydantic ``model_validator(mode="before")``."""
+    if not isinstance(data, dict) or data.get("preset") is None:
+        return data
+    out = load_preset(data["preset"])
+    out.update({k: v for k, v in data.items() if v is not None})
+    return out

@@ -114,9 +114,7 @@ class _ShellSection(SectionBase):
         kind = data.get("formulation", "")
         if not PRESET_DIR.joinpath(kind).is_dir():
             raise ValueError(f"formulation {kind!r} has no presets")
-        merged = load_section_preset(kind, data["preset"])
-        merged.update({k: v for k, v in data.items() if v is not None})
-        return merged
+        return presets.merged(data, lambda name: load_section_preset(kind, name))
 
     @model_validator(mode="after")
     def _complete(self):

@@ -252,11 +252,7 @@ class FabricHyper(MaterialCard):
     @model_validator(mode="before")
     @classmethod
     def _merge_preset(cls, data):
-        if not isinstance(data, dict) or data.get("preset") is None:
-            return data
-        merged = load_preset(data["preset"])
-        merged.update({k: v for k, v in data.items() if v is not None})
-        return merged
+        return presets.merged(data, load_preset)
 
     @model_validator(mode="after")
     def _complete(self):
