@@ -137,7 +137,7 @@ def run(deck: Path = typer.Argument(..., help="Deck file."),
 def info(deck: Path = typer.Argument(..., help="Deck file.")):
     """What a deck will do: sizes, stable time step, cycles, memory, the effects that will run."""
     from fdeck.compile.errors import CompileError
-    from fdeck.compile.problem import compile_deck
+    from fdeck.compile.problem import compile_deck, rest_dt
     from fdeck.deck.errors import format_problems
 
     d, locs = _read(deck)
@@ -152,7 +152,7 @@ def info(deck: Path = typer.Argument(..., help="Deck file.")):
     for plan in p.steps:
         dts = []
         for g, rho in zip(p.groups, plan.rho):
-            dts.append(plan.dt_safety * float(np.min(g.rest_dt(rho))))
+            dts.append(plan.dt_safety * float(np.min(rest_dt(g, rho, p.effects))))
         dt = min(dts)
         cycles += int(np.ceil(plan.duration / dt))
         typer.echo(f"  step {plan.name}: rest stable dt {dt:.4g} s, ~{int(np.ceil(plan.duration / dt))} cycles, "

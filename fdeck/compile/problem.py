@@ -226,7 +226,17 @@ def nodal_mass(groups: list, n_node: int, rho: list[np.ndarray] | None = None) -
     return m
 
 
-def plan_steps(deck: Deck, groups: list, physical_mass: np.ndarray) -> list[StepPlan]:
+def rest_dt(group, rho: np.ndarray, effects=()) -> np.ndarray:
+    """(n_el,) rest stable steps [s] of a group's elements with densities rho, lowered by every effect acting on that
+    group that has a stiffness of its own (an effect with ``group`` and ``rest_dt``, e.g. fibre bending)."""
+    dt = group.rest_dt(rho)
+    for e in effects:
+        if getattr(e, "group", None) is group and hasattr(e, "rest_dt"):
+            dt = np.minimum(dt, e.rest_dt(rho))
+    return dt
+
+
+def plan_steps(deck: Deck, groups: list, physical_mass: np.ndarray, effects=()) -> list[StepPlan]:
     total = physical_mass.sum()
     plans = []
     for s in deck.steps:
@@ -236,7 +246,7 @@ def plan_steps(deck: Deck, groups: list, physical_mass: np.ndarray) -> list[Step
             rho = [r * ms.factor for r in rho]
         elif ms is not None:
             for i, g in enumerate(groups):
-                dt0 = g.rest_dt(g.rho)  # rest stable step per element
+                dt0 = rest_dt(g, g.rho, effects)  # rest stable step per element
                 rho[i] = g.rho * np.maximum(1.0, (ms.target_dt / (s.dt_safety * dt0)) ** 2)
         added = (nodal_mass(groups, len(physical_mass), rho).sum() - total) / total
         alpha = s.damping.mass_proportional if s.damping else 0.0
@@ -290,7 +300,7 @@ def compile_deck(deck: Deck, base: Path = Path(".")) -> Problem:
             problems += exc.problems
     if problems:
         raise CompileError(problems)
-    steps = plan_steps(deck, groups, mass)
+    steps = plan_steps(deck, groups, mass, effects)
     damping = None
     if any(s.alpha > 0 for s in steps):  # built only when a step asks for it
         damping = MassDamping(mass.copy(), rotational=rotations is not None)

@@ -509,6 +509,8 @@ class FibreBendingEffect(Effect):
         self.chi0 = np.zeros((n_h, 2))
         self._evaluate(X)
         self.chi0 = self.chi.copy()  # the reference configuration is unbent by definition
+        self._evaluate(X)  # the rest state (chi = 0): its hinge stiffnesses give the rest step
+        self.dchi_rest, self.kS_rest = self.dchi.copy(), self.kS.copy()
         self._energy = 0.0
         self._mass, self._mass_rho = None, None
 
@@ -543,6 +545,19 @@ class FibreBendingEffect(Effect):
         self.group.stable_dt()  # refreshes group.dt_e from the current moduli (independent of call order)
         element_steps(self.conn, self.R, self.nodal_mass(), self.group.dt_e, self.dt_e)
         return float(self.dt_e.min())
+
+    def rest_dt(self, rho: np.ndarray) -> np.ndarray:
+        """(n_el,) element steps [s] at rest, bending and continuum together, with the group's densities rho
+        (n_el,) [t/mm^3]: what mass scaling to a target step and ``fdeck info`` need before the run."""
+        m_el = self.group.mass() * (np.asarray(rho, float) / self.group.rho)[:, None]
+        m = np.zeros(len(self.R))
+        np.add.at(m, self.conn.ravel(), m_el.ravel())
+        m = np.where(m > 0, m, np.inf)
+        rows, R, out = np.zeros_like(self.rows), np.zeros_like(self.R), np.zeros(len(self.conn))
+        element_rows(self.G, self.el_hinge, self.dchi_rest, self.kS_rest, rows)
+        gather_rows(rows, self.ptr, self.slots, R)
+        element_steps(self.conn, R, m, self.group.rest_dt(rho), out)
+        return out
 
     def curvatures(self) -> dict[str, np.ndarray]:
         """Current hinge curvatures [1/mm] per family: name -> (n_hinge_of_family, 2 levels)."""
