@@ -7,7 +7,7 @@ else does code branch on a card's ``type``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Callable
 
 

@@ -16,7 +16,8 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-CASES = {"bias_extension_3weave": "diagonal W/6 (11.78 mm edges)", "bias_extension_3weave_fine": "diagonal W/20 (3.53 mm)"}
+CASES = {"bias_extension_3weave": "diagonal W/6 (11.78 mm edges)",
+         "bias_extension_3weave_fine": "diagonal W/20 (3.53 mm)"}
 
 
 def report() -> str:

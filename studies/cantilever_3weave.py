@@ -117,8 +117,9 @@ def report() -> None:
     for r in finer:
         ref = next((b for b in rows if key(b)[:3] == key(r)[:3]), None)
         if ref:
-            lines.append(f"\nMesh check: {r['direction']} {r['length']} mm, compression {100 * r['compression_ratio']:g} %: "
-                         f"{r['element_length']:g} mm elements give {r['tip_deflection']:.1f} mm against "
+            lines.append(f"\nMesh check: {r['direction']} {r['length']} mm, "
+                         f"compression {100 * r['compression_ratio']:g} %: {r['element_length']:g} mm elements give "
+                         f"{r['tip_deflection']:.1f} mm against "
                          f"{ref['tip_deflection']:.1f} mm with {DECK_ELEMENT:g} mm.")
     (OUT / "cantilever_3weave.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))

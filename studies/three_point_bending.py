@@ -28,7 +28,6 @@ def side_view(variant: str, out: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     import meshio
-    import numpy as np
 
     frames = sorted((RESULTS / variant).glob(f"{variant}_*.vtu"))
     m = meshio.read(frames[-1])

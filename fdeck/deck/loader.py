@@ -45,7 +45,8 @@ _Loader.add_implicit_resolver(
 
 @dataclass
 class Locations:
-    """Where each value and each key of a loaded document sits; paths are tuples like ``("sections", 0, "material")``."""
+    """Where each value and each key of a loaded document sits; paths are tuples like
+    ``("sections", 0, "material")``."""
 
     values: dict[tuple, Pos] = field(default_factory=dict)
     keys: dict[tuple, Pos] = field(default_factory=dict)

@@ -14,7 +14,7 @@ from pydantic import Discriminator, Field, Tag, model_validator
 
 from fdeck import registry
 from fdeck.deck.base import Card
-from fdeck.deck.section import Orientation, SectionBase
+from fdeck.deck.section import SectionBase
 
 registry.load_plugins()
 
