@@ -58,6 +58,7 @@ with a longer earlier run).
 
 from __future__ import annotations
 
+import abc
 import math
 import os
 import re
@@ -188,7 +189,7 @@ def _fields(data: Mapping[str, np.ndarray] | None, n: int, where: str, split: bo
     return out
 
 
-class _Series:
+class _Series(abc.ABC):
     """Validation and bookkeeping common to both writers; subclasses implement ``_write_frame``."""
 
     def __init__(self, out_dir, name: str, points, cells, *, split_tensors: bool = False):
@@ -234,8 +235,9 @@ class _Series:
         self.times.append(t)
         return index
 
-    def _write_frame(self, k, t, pd, cd, pts) -> Path:  # pragma: no cover - abstract
-        raise NotImplementedError
+    @abc.abstractmethod
+    def _write_frame(self, k, t, pd, cd, pts) -> Path:
+        """Write frame k at time t (point and cell fields, optional moved points); return the frame's file."""
 
     def close(self) -> None:
         """Finish the series (idempotent). Every frame is already complete on disk; this only forbids more."""

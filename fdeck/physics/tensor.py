@@ -2,8 +2,9 @@
 
 import math
 
+import numba
 
-from fdeck.jit import njit
+from fdeck.jit import FLAGS, njit
 
 
 @njit
@@ -60,3 +61,13 @@ def sym_bound6(a00, a11, a22, a01, a12, a02):
     stable-step moduli, where an upper bound is what is needed and transcendental functions cost too much.
     """
     return max(a00 + abs(a01) + abs(a02), a11 + abs(a01) + abs(a12), a22 + abs(a02) + abs(a12))
+
+
+@numba.njit(inline="always", **FLAGS)
+def push(F, frame, i):
+    """a_i = F f_i as 3 scalars: current image of reference direction i (row i of frame (3, 3)) under F (3, 3).
+    Inlined at numba level into the fabric laws' point kernels."""
+    f0, f1, f2 = frame[i, 0], frame[i, 1], frame[i, 2]
+    return (F[0, 0] * f0 + F[0, 1] * f1 + F[0, 2] * f2,
+            F[1, 0] * f0 + F[1, 1] * f1 + F[1, 2] * f2,
+            F[2, 0] * f0 + F[2, 1] * f1 + F[2, 2] * f2)

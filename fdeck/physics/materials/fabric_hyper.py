@@ -41,6 +41,7 @@ from pydantic import Field, FiniteFloat, model_validator
 from fdeck.deck.base import Card, MaterialCard
 from fdeck.jit import FLAGS, njit, njit_parallel, prange
 from fdeck.physics import presets
+from fdeck.physics.tensor import push
 from fdeck.registry import MaterialKind, register_material
 
 MODES = ("warp", "weft", "compaction", "in_plane_shear", "transverse_shear_warp", "transverse_shear_weft")
@@ -386,15 +387,6 @@ def _even(p, k, x):
 # ----------------------------------------------------------------------------------------------------------------
 
 @_inline
-def _push(F, frame, i):
-    """a_i = F f_i (3 scalars): current image of reference fibre direction i."""
-    f0, f1, f2 = frame[i, 0], frame[i, 1], frame[i, 2]
-    return (F[0, 0] * f0 + F[0, 1] * f1 + F[0, 2] * f2,
-            F[1, 0] * f0 + F[1, 1] * f1 + F[1, 2] * f2,
-            F[2, 0] * f0 + F[2, 1] * f1 + F[2, 2] * f2)
-
-
-@_inline
 def _dot(a, b):
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
@@ -412,7 +404,7 @@ def _kinematics(F, frame):
     -> a1, a2, a3 (3-tuples a_i = F f_i), (g11, g22, g33, g12, g13, g23) with g_ij = I4ij,
        (q1, q2, q3) with q_i = 1/|a_i|, J = det F, iD = 1/D with D = I41 I42 - I412^2.
     """
-    a1, a2, a3 = _push(F, frame, 0), _push(F, frame, 1), _push(F, frame, 2)
+    a1, a2, a3 = push(F, frame, 0), push(F, frame, 1), push(F, frame, 2)
     g11, g22, g33 = _dot(a1, a1), _dot(a2, a2), _dot(a3, a3)
     g12, g13, g23 = _dot(a1, a2), _dot(a1, a3), _dot(a2, a3)
     q1, q2, q3 = 1.0 / math.sqrt(g11), 1.0 / math.sqrt(g22), 1.0 / math.sqrt(g33)

@@ -73,6 +73,7 @@ from pydantic import Field, FiniteFloat, model_validator
 from fdeck.deck.base import Card, MaterialCard
 from fdeck.jit import FLAGS, njit, njit_parallel, prange
 from fdeck.physics import presets
+from fdeck.physics.tensor import push
 from fdeck.registry import MaterialKind, register_material
 
 MAX_POINTS = 16
@@ -338,17 +339,9 @@ def _shear(p, g):
 
 
 @_inline
-def _push(F, frame, i):
-    f0, f1, f2 = frame[i, 0], frame[i, 1], frame[i, 2]
-    return (F[0, 0] * f0 + F[0, 1] * f1 + F[0, 2] * f2,
-            F[1, 0] * f0 + F[1, 1] * f1 + F[1, 2] * f2,
-            F[2, 0] * f0 + F[2, 1] * f1 + F[2, 2] * f2)
-
-
-@_inline
 def _kinematics(F, frame):
     """-> a1, a2 (3-tuples), I1, I2, I12, s, c = sqrt(1 - s^2), gamma [rad]."""
-    a1, a2 = _push(F, frame, 0), _push(F, frame, 1)
+    a1, a2 = push(F, frame, 0), push(F, frame, 1)
     i1 = a1[0] * a1[0] + a1[1] * a1[1] + a1[2] * a1[2]
     i2 = a2[0] * a2[0] + a2[1] * a2[1] + a2[2] * a2[2]
     i12 = a1[0] * a2[0] + a1[1] * a2[1] + a1[2] * a2[2]
