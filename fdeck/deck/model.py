@@ -40,14 +40,8 @@ Formulation = Literal[SOLID_FORMULATIONS]  # type: ignore[valid-type]
 
 
 # -- mesh -------------------------------------------------------------------------------------------
-class Block(Card):
-    """Structured block of hexahedra. Node sets xmin, xmax, ymin, ymax, zmin, zmax (faces) and `all` are made."""
-
-    origin: Vector = Field((0.0, 0.0, 0.0), description="Corner with the smallest coordinates [mm].")
-    size: Vector = Field(description="Edge lengths along x, y, z [mm].")
-    divisions: tuple[PositiveInt, PositiveInt, PositiveInt] | None = Field(
-        None, description="Elements along x, y, z. Give this or `element_size`.")
-    element_size: float | None = Field(None, gt=0, description="Target edge length [mm]; divisions = ceil(size/h).")
+class _Structured(Card):
+    """What the built-in generators share: `divisions` or `element_size`, and positive edge lengths `size`."""
 
     @model_validator(mode="after")
     def _one_of(self):
@@ -56,6 +50,16 @@ class Block(Card):
         if min(self.size) <= 0:
             raise ValueError(f"every edge length must be > 0, got {list(self.size)}")
         return self
+
+
+class Block(_Structured):
+    """Structured block of hexahedra. Node sets xmin, xmax, ymin, ymax, zmin, zmax (faces) and `all` are made."""
+
+    origin: Vector = Field((0.0, 0.0, 0.0), description="Corner with the smallest coordinates [mm].")
+    size: Vector = Field(description="Edge lengths along x, y, z [mm].")
+    divisions: tuple[PositiveInt, PositiveInt, PositiveInt] | None = Field(
+        None, description="Elements along x, y, z. Give this or `element_size`.")
+    element_size: float | None = Field(None, gt=0, description="Target edge length [mm]; divisions = ceil(size/h).")
 
 
 class BoxSet(Card):
@@ -65,7 +69,7 @@ class BoxSet(Card):
     tolerance: float = Field(1e-6, ge=0, description="Added to every side of the box [mm].")
 
 
-class Plate(Card):
+class Plate(_Structured):
     """Structured plate of quadrilaterals (or triangles) in the plane z = origin z, normal +z, for shells and
     membranes. Node sets xmin, xmax, ymin, ymax (edges) and `all` are made."""
 
@@ -75,14 +79,6 @@ class Plate(Card):
         None, description="Elements along x and y. Give this or `element_size`.")
     element_size: float | None = Field(None, gt=0, description="Target edge length [mm]; divisions = ceil(size/h).")
     triangles: bool = Field(False, description="Split every quadrilateral into two triangles.")
-
-    @model_validator(mode="after")
-    def _one_of(self):
-        if (self.divisions is None) == (self.element_size is None):
-            raise ValueError("give exactly one of `divisions` or `element_size`")
-        if min(self.size) <= 0:
-            raise ValueError(f"every edge length must be > 0, got {list(self.size)}")
-        return self
 
 
 class Mesh(Card):
