@@ -200,30 +200,31 @@ def setup_rotations(deck: Deck, groups: list, n_node: int) -> RotationalNodes | 
     return RotationalNodes(d0, nodes)
 
 
-def nodal_inertia(groups: list, n_node: int, rho: list[np.ndarray] | None = None) -> np.ndarray:
-    """Lumped rotational inertia (n_node,) [t mm^2] of the groups that carry rotations (0 elsewhere)."""
+def _lumped(groups: list, n_node: int, rho, per_element) -> np.ndarray:
+    """(n_node,) sum over the groups of per_element(g) (n_el, nodes per element), with each group's density
+    temporarily set to rho[i] when rho is given; groups for which per_element returns None are skipped."""
     out = np.zeros(n_node)
     for i, g in enumerate(groups):
-        if not getattr(g, "rotational", False):
-            continue
         saved = g.rho
         if rho is not None:
             g.rho = rho[i]
-        np.add.at(out, g.conn.ravel(), g.inertia().ravel())
-        g.rho = saved
+        try:
+            values = per_element(g)
+            if values is not None:
+                np.add.at(out, g.conn.ravel(), values.ravel())
+        finally:
+            g.rho = saved
     return out
+
+
+def nodal_inertia(groups: list, n_node: int, rho: list[np.ndarray] | None = None) -> np.ndarray:
+    """Lumped rotational inertia (n_node,) [t mm^2] of the groups that carry rotations (0 elsewhere)."""
+    return _lumped(groups, n_node, rho, lambda g: g.inertia() if getattr(g, "rotational", False) else None)
 
 
 def nodal_mass(groups: list, n_node: int, rho: list[np.ndarray] | None = None) -> np.ndarray:
     """Lumped nodal mass (n_node,) [t] from the groups' densities (or the given ones)."""
-    m = np.zeros(n_node)
-    for i, g in enumerate(groups):
-        saved = g.rho
-        if rho is not None:
-            g.rho = rho[i]
-        np.add.at(m, g.conn.ravel(), g.mass().ravel())
-        g.rho = saved
-    return m
+    return _lumped(groups, n_node, rho, lambda g: g.mass())
 
 
 def rest_dt(group, rho: np.ndarray, effects=()) -> np.ndarray:
