@@ -43,7 +43,7 @@ def hex_deck(mesh, orientation, steps=None):
     }
 
 
-def frames_of(data, base):
+def group_of(data, base):
     from fdeck.compile.problem import compile_deck
     from fdeck.deck.model import Deck
 
@@ -55,7 +55,7 @@ def test_angle_field_adds_to_the_section_angle(tmp_path):
     """Requirement: a one-component field turns each element's warp by its value on top of `warp_angle`:
     warp = (cos(a + a_e), sin(a + a_e), 0) about the +z normal. Tolerance 1e-14: one rotation in double precision."""
     write_block(tmp_path / "m.vtu", angles=[0.0, 30.0, -45.0])
-    g = frames_of(hex_deck(tmp_path / "m.vtu", {"warp_angle": 10.0, "field": "angle"}), tmp_path)
+    g = group_of(hex_deck(tmp_path / "m.vtu", {"warp_angle": 10.0, "field": "angle"}), tmp_path)
     a = np.radians([10.0, 40.0, -35.0])
     frames = g.frame.reshape(3, -1, 3, 3)  # per element, every point the same frame
     expected = np.stack([np.cos(a), np.sin(a), np.zeros(3)], axis=1)
@@ -70,7 +70,7 @@ def test_direction_field_replaces_the_reference_and_is_projected(tmp_path):
     to `normal` and normalised (an out-of-plane part, as a draping tool may give, is dropped). Tolerance 1e-14."""
     dirs = [[0.0, 2.0, 0.0], [1.0, 1.0, 0.5], [-1.0, 0.0, 3.0]]
     write_block(tmp_path / "m.vtu", directions=dirs)
-    g = frames_of(hex_deck(tmp_path / "m.vtu", {"field": "warp"}), tmp_path)
+    g = group_of(hex_deck(tmp_path / "m.vtu", {"field": "warp"}), tmp_path)
     warp = g.frame.reshape(3, -1, 3, 3)[:, 0, 0]
     expected = np.array([[0, 1, 0], [1 / np.sqrt(2), 1 / np.sqrt(2), 0], [-1, 0, 0]])
     assert np.abs(warp - expected).max() < 1e-14
@@ -105,11 +105,23 @@ def test_shell_bases_follow_the_angle_field(tmp_path):
             "sections": [{"material": "f", "formulation": "sm", "preset": "t300_3k",
                           "orientation": {"field": "angle"}}],
             "steps": [{"duration": 1e-3}]}
-    g = frames_of(data, tmp_path)
+    g = group_of(data, tmp_path)
     a = np.radians([0.0, 45.0, 90.0])
     e1 = np.stack([np.cos(a), np.sin(a), np.zeros(3)], axis=1)[:, None, :]
     assert np.abs(g.e1 - e1).max() < 1e-14
     assert np.abs(g.e2 - np.cross([0.0, 0.0, 1.0], e1)).max() < 1e-14
+
+
+def test_a_direction_along_the_normal_is_a_located_error_naming_the_count(tmp_path):
+    """Requirement: a three-component field whose direction is the sheet normal for one element (no warp can be
+    projected from it) is a compile error at the section's orientation, counting that element, not a NaN frame."""
+    from fdeck.compile.errors import CompileError
+
+    write_block(tmp_path / "m.vtu", directions=[[1.0, 0.0, 0.0], [0.0, 0.0, 2.0], [0.0, 1.0, 0.0]])
+    with pytest.raises(CompileError) as err:
+        group_of(hex_deck(tmp_path / "m.vtu", {"field": "warp"}), tmp_path)
+    ((path, message),) = err.value.problems
+    assert path == ("sections", 0, "orientation") and "for 1 elements" in message
 
 
 BAD = """\

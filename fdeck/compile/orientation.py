@@ -25,13 +25,14 @@ class ElementOrientation:
     normal: np.ndarray
 
     def frames(self) -> np.ndarray:
-        """(n_el, 3, 3) rows warp, weft, thickness (unit, right-handed). Raises ValueError on a zero normal or a
-        reference parallel to it."""
+        """(n_el, 3, 3) rows warp, weft, thickness (unit, right-handed). Raises ValueError on a reference parallel
+        to the normal (the normal is checked non-zero by ``element_orientation``)."""
         n = self.normal / np.linalg.norm(self.normal)
         r = self.reference - (self.reference @ n)[:, None] * n
         norm = np.linalg.norm(r, axis=1)
-        if (norm < 1e-9 * np.linalg.norm(self.reference, axis=1)).any() or (norm == 0).any():
-            raise ValueError(f"`reference` is parallel to `normal` for {int((norm < 1e-9).sum())} elements")
+        bad = norm <= 1e-9 * np.linalg.norm(self.reference, axis=1)  # also catches a zero reference
+        if bad.any():
+            raise ValueError(f"`reference` is parallel to `normal` (or zero) for {int(bad.sum())} elements")
         r /= norm[:, None]
         a = np.radians(self.warp_angle)[:, None]
         warp = np.cos(a) * r + np.sin(a) * np.cross(n, r)

@@ -12,6 +12,7 @@ from fdeck.compile import amplitude
 from fdeck.compile.errors import CompileError
 from fdeck.compile.mesh import MeshArrays, add_box_sets, block, plate, read_file
 from fdeck.compile.orientation import element_orientation
+from fdeck.deck.errors import unknown_name
 from fdeck.deck.model import Deck
 
 
@@ -74,19 +75,11 @@ class Context:
 
     def node_set(self, name: str) -> np.ndarray:
         if name not in self.mesh.node_sets:
-            raise CompileError([(self.path + ("nodes",), _missing("node set", name, self.mesh.node_sets))])
+            raise CompileError([(self.path + ("nodes",), unknown_name("node set", name, self.mesh.node_sets))])
         return self.mesh.node_sets[name]
 
     def amplitude(self, name: str):
         return amplitude.make(name, self.deck.amplitudes, self.deck.duration)
-
-
-def _missing(what: str, name: str, known) -> str:
-    import difflib
-
-    close = difflib.get_close_matches(name, list(known), n=1)
-    hint = f"did you mean '{close[0]}'?" if close else "known: " + ", ".join(sorted(known))
-    return f"unknown {what} '{name}' ({hint})"
 
 
 def load_mesh(deck: Deck, base: Path) -> MeshArrays:
@@ -112,15 +105,16 @@ def build_groups(deck: Deck, mesh: MeshArrays) -> list:
     for i, sec in enumerate(deck.sections):
         path = ("sections", i)
         if sec.elements not in mesh.element_sets:
-            problems.append((path + ("elements",), _missing("element set", sec.elements, mesh.element_sets)))
+            problems.append((path + ("elements",), unknown_name("element set", sec.elements, mesh.element_sets)))
             continue
         kind = registry.MATERIALS[deck.materials[sec.material].type]
         card = deck.materials[sec.material]
         form = registry.FORMULATIONS[sec.formulation]
         if sec.orientation.field is not None and sec.orientation.field not in mesh.cell_data:
-            where = "the mesh file" if deck.mesh.file else "a built-in mesh (fields come from a mesh file)"
-            problems.append((path + ("orientation", "field"), _missing(f"cell field in {where}:",
-                                                                       sec.orientation.field, mesh.cell_data)))
+            message = unknown_name("cell field", sec.orientation.field, mesh.cell_data)
+            if not deck.mesh.file:
+                message += "; built-in meshes have none, fields come from a mesh file"
+            problems.append((path + ("orientation", "field"), message))
             continue
         if form.plane_stress and not kind.plane_stress:
             known = sorted(k for k, v in registry.MATERIALS.items() if v.plane_stress)
@@ -144,9 +138,7 @@ def build_groups(deck: Deck, mesh: MeshArrays) -> list:
             try:
                 field = mesh.cell_data[sec.orientation.field][ctype][idx] if sec.orientation.field else None
                 orient = element_orientation(sec.orientation, len(idx), field)
-                if not form.plane_stress:  # solids check the frames here; shells build theirs per Gauss point
-                    orient.frames()
-            except (ValueError, KeyError) as exc:
+            except ValueError as exc:
                 problems.append((path + ("orientation",), str(exc)))
                 continue
             rho = np.full(len(idx), card.density)

@@ -142,6 +142,14 @@ def _num(x) -> str:
     return text[:-2] if isinstance(x, float) and text.endswith(".0") else text
 
 
+def unknown_name(what: str, name: str, known) -> str:
+    """Message for a name that refers to nothing: "unknown <what> '<name>'" with the closest known name, or the
+    list of known names (or 'none')."""
+    close = difflib.get_close_matches(name, [str(k) for k in known], n=1)
+    hint = f" (did you mean '{close[0]}'?)" if close else f" (known: {', '.join(sorted(map(str, known))) or 'none'})"
+    return f"unknown {what} '{name}'{hint}"
+
+
 def _suggest(word, choices) -> str:
     choices = [str(c) for c in choices]
     close = difflib.get_close_matches(str(word), choices, n=1)

@@ -14,6 +14,7 @@ from pydantic import Discriminator, Field, Tag, model_validator
 
 from fdeck import registry
 from fdeck.deck.base import Card
+from fdeck.deck.errors import unknown_name
 from fdeck.deck.section import SectionBase
 
 registry.load_plugins()
@@ -308,17 +309,17 @@ def cross_reference_problems(deck: Deck) -> list[tuple[tuple, str, str]]:
     out = []
     for i, s in enumerate(deck.sections):
         if s.material not in deck.materials:
-            out.append((("sections", i, "material"), _unknown("material", s.material, deck.materials), "error"))
+            out.append((("sections", i, "material"), unknown_name("material", s.material, deck.materials), "error"))
     names = set(BUILTIN_AMPLITUDES) | set(deck.amplitudes)
     for group in ("boundary", "loads"):
         for i, c in enumerate(getattr(deck, group)):
             amp = getattr(c, "amplitude", None)
             if amp is not None and amp not in names:
-                out.append(((group, i, "amplitude"), _unknown("amplitude", amp, names), "error"))
+                out.append(((group, i, "amplitude"), unknown_name("amplitude", amp, names), "error"))
     measures = [m.name for m in deck.output.measures]
     for i, lim in enumerate(deck.checks.limits):
         if lim.measure not in measures:
-            out.append((("checks", "limits", i, "measure"), _unknown("measure", lim.measure, measures), "error"))
+            out.append((("checks", "limits", i, "measure"), unknown_name("measure", lim.measure, measures), "error"))
     used = {s.material for s in deck.sections}
     for name in deck.materials:
         if name not in used:
@@ -330,11 +331,3 @@ def cross_reference_problems(deck: Deck) -> list[tuple[tuple, str, str]]:
             out.append((("steps", i, "bulk_viscosity"), "bulk viscosity acts on hexahedra only and no section has "
                         "them: it will have no effect", "warning"))
     return out
-
-
-def _unknown(what, name, known) -> str:
-    import difflib
-
-    close = difflib.get_close_matches(name, list(known), n=1)
-    hint = f" (did you mean '{close[0]}'?)" if close else f" (known: {', '.join(sorted(known)) or 'none'})"
-    return f"unknown {what} '{name}'{hint}"

@@ -533,10 +533,15 @@ class FibreBendingEffect(Effect):
         """(n_node,) lumped mass of this group's elements [t] with the group's current density (mass scaling
         included); nodes shared with other groups get only this group's share, which errs on the safe side."""
         if self._mass_rho is not self.group.rho:
-            m = np.zeros(len(self.R))
-            np.add.at(m, self.conn.ravel(), self.group.mass().ravel())
-            self._mass, self._mass_rho = np.where(m > 0, m, np.inf), self.group.rho
+            self._mass, self._mass_rho = self._lump(self.group.mass()), self.group.rho
         return self._mass
+
+    def _lump(self, m_el: np.ndarray) -> np.ndarray:
+        """(n_node,) sum of element nodal masses m_el (n_el, 8) [t]; inf where this group has no mass (so that
+        R / m vanishes off the group)."""
+        m = np.zeros(len(self.R))
+        np.add.at(m, self.conn.ravel(), m_el.ravel())
+        return np.where(m > 0, m, np.inf)
 
     def stable_dt(self) -> float:
         """Smallest element step [s] of bending and continuum together, from the state of the last add_force."""
@@ -549,10 +554,7 @@ class FibreBendingEffect(Effect):
     def rest_dt(self, rho: np.ndarray) -> np.ndarray:
         """(n_el,) element steps [s] at rest, bending and continuum together, with the group's densities rho
         (n_el,) [t/mm^3]: what mass scaling to a target step and ``fdeck info`` need before the run."""
-        m_el = self.group.mass() * (np.asarray(rho, float) / self.group.rho)[:, None]
-        m = np.zeros(len(self.R))
-        np.add.at(m, self.conn.ravel(), m_el.ravel())
-        m = np.where(m > 0, m, np.inf)
+        m = self._lump(self.group.mass() * (np.asarray(rho, float) / self.group.rho)[:, None])
         rows, R, out = np.zeros_like(self.rows), np.zeros_like(self.R), np.zeros(len(self.conn))
         element_rows(self.G, self.el_hinge, self.dchi_rest, self.kS_rest, rows)
         gather_rows(rows, self.ptr, self.slots, R)

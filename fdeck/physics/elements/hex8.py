@@ -20,6 +20,7 @@ import math
 
 import numpy as np
 
+from fdeck.compile.errors import CompileError
 from fdeck.jit import njit, njit_parallel, prange
 from fdeck.physics.tensor import det3
 from fdeck.registry import FormulationKind, register_formulation
@@ -413,7 +414,11 @@ def build(name, section, X, conn, ids, material, params, orientation, rho, cell_
         from fdeck.deck.model import Hourglass
 
         hourglass = Hourglass()
-    return Hex8Group(name, section.formulation, X, conn, ids, material, params, orientation.frames(), rho, hourglass)
+    try:
+        frames = orientation.frames()
+    except ValueError as exc:
+        raise CompileError([(("orientation",), str(exc))]) from None
+    return Hex8Group(name, section.formulation, X, conn, ids, material, params, frames, rho, hourglass)
 
 
 for _name, _doc in (("full", "2x2x2 Gauss integration"),
