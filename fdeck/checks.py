@@ -28,9 +28,10 @@ def evaluate(checks, history: np.ndarray, columns: list[str], duration: float) -
                         what="max |energy balance error| / largest energy"))
     if checks.hourglass is not None:
         c = checks.hourglass
-        value = float(col["hourglass_energy"][-1] / max(ie[-1], 1e-300))
+        hg = col["hourglass_energy"][-1] + (col["hourglass_dissipation"][-1] if "hourglass_dissipation" in col else 0)
+        value = float(hg / max(ie[-1], 1e-300))
         out.append(dict(name="hourglass", value=value, limit=c.max_ratio, passed=bool(value <= c.max_ratio),
-                        what="hourglass / internal energy at the end"))
+                        what="hourglass (stored and viscous) / internal energy at the end"))
     for lim in checks.limits:
         rows = col["time"] >= lim.after * duration
         vals = col[lim.measure][rows]

@@ -149,19 +149,21 @@ def info(deck: Path = typer.Argument(..., help="Deck file.")):
     typer.echo(f"{deck}: {d.title}")
     typer.echo(f"  nodes {p.n_node}, elements {p.n_element}, duration {p.duration:.4g} s, units {d.units}")
     cycles, mem = 0, 0
-    for plan in p.steps:
+    for plan, step in zip(p.steps, d.steps):
+        alpha = step.damping.mass_proportional if step.damping else 0.0
         dts = []
         for g, rho in zip(p.groups, plan.rho):
             dts.append(plan.dt_safety * float(np.min(rest_dt(g, rho, p.effects))))
         dt = min(dts)
         cycles += int(np.ceil(plan.duration / dt))
         typer.echo(f"  step {plan.name}: rest stable dt {dt:.4g} s, ~{int(np.ceil(plan.duration / dt))} cycles, "
-                   f"added mass {100 * plan.added_mass:.3g} %, damping alpha {plan.alpha:g} 1/s")
+                   f"added mass {100 * plan.added_mass:.3g} %, damping alpha {alpha:g} 1/s"
+                   + (f", max_cycles {plan.max_cycles}" if plan.max_cycles else ""))
     for g in p.groups:
         mem += sum(a.nbytes for a in vars(g).values() if isinstance(a, np.ndarray) and a.base is None)
         typer.echo(f"  group {g.name}: {len(g.conn)} {g.cell_type}, {g.formulation}, material {g.material.name}"
                    + (f", rotational inertia +{100 * g.added_rotational_inertia:.3g} % over rho h^3/12 (so rotations "
-                      "do not set the step)" if getattr(g, "rotational", False) else ""))
+                      "do not set the step)" if g.rotational else ""))
     typer.echo(f"  effects: {', '.join(e.name for e in p.effects) or 'none'}")
     typer.echo(f"  about {cycles} cycles in all (the step follows the current tangent, so it may differ); "
                f"element arrays {mem / 2**20:.1f} MiB")

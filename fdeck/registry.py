@@ -48,9 +48,13 @@ class MaterialKind:
 class EffectKind:
     """A boundary condition, load, damping or section-level add-on.
 
-    card: pydantic model with ``type: Literal[name]``.
-    build(card, problem) -> engine.effect.Effect, called by the compiler only for effects a deck names.
-    section: 'boundary' or 'loads' (the deck list the card goes in) or 'section' (an add-on of a section).
+    card: pydantic model with ``type: Literal[name]`` (for 'step' effects: the step's setting of that name).
+    build(card, ctx) -> engine.effect.Effect, called by the compiler only for effects a deck names, with ``ctx`` a
+        ``compile.problem.Context`` (mesh, groups, rotations, surfaces, sets, amplitudes).
+    section: 'boundary' or 'loads' (the deck list the card goes in), 'section' (an add-on of a section, built once
+        per group of that section, ``ctx.group``) or 'step' (a setting of every step, ``steps[i].<name>``: build gets
+        the list of the steps' cards, None where a step has none, and returns an Effect or None when no step needs
+        it; the effect learns the current step through ``begin_step``).
     """
 
     name: str

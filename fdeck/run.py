@@ -102,11 +102,10 @@ def execute(deck, base: Path, out_dir: Path, name: str, deck_path: str, progress
     t_compile = time.perf_counter() - t_compile
     out = Outputs(problem, out_dir, name, progress)
     with _Signals() as sig:
-        rotations = getattr(problem, "rotations", None)
-        first = None if rotations is None else {"director": rotations.d0}
+        first = None if problem.rotations is None else {"director": problem.rotations.d0}
         out.frame(0.0, problem.X.copy(), np.zeros_like(problem.X), first)
         result = solver.run(problem, out, should_stop=lambda: sig.received is not None)
-        if result.status in ("interrupted", "failed") and result.t > out.last_frame_time:
+        if (result.status in ("interrupted", "failed") or result.stopped_steps) and result.t > out.last_frame_time:
             last = None if result.final_directors is None else {"director": result.final_directors}
             out.frame(result.t, result.final_positions, result.final_velocities, last)
     out.close()
@@ -149,8 +148,9 @@ def make_summary(deck_path, deck, problem, result, verdicts, t_compile, frames) 
         "dt_max": result.dt_max if result.cycles else None,
         "added_mass_percent": [100.0 * a for a in result.added_mass],
         **({"added_rotational_inertia_percent": {g.name: 100.0 * g.added_rotational_inertia for g in problem.groups
-                                                 if getattr(g, "rotational", False)}}
-           if getattr(problem, "rotations", None) is not None else {}),
+                                                 if g.rotational}}
+           if problem.rotations is not None else {}),
+        "steps_stopped_at_max_cycles": result.stopped_steps,
         "frames": frames,
         "final": last,
         "measures": {c: last.get(c) for m in problem.measures for c in m.columns},

@@ -80,3 +80,13 @@ def symmetric_central_gradient(f, C: np.ndarray, h: float) -> np.ndarray:
         E[j, i] += 0.5 * h
         g[i, j] = (f(C + E) - f(C - E)) / (2 * h)
     return g
+
+
+def stored_energy(source) -> float:
+    """Sum of the stored ledger terms of a group or effect [mJ] (``engine.ledger``)."""
+    return sum(v for t, v in zip(source.terms, source.term_values()) if t.kind == "stored")
+
+
+def term(source, name: str) -> float:
+    """Value of one named ledger term of a group or effect."""
+    return dict(zip((t.name for t in source.terms), source.term_values()))[name]

@@ -15,6 +15,8 @@ from fdeck.compile.problem import setup_rotations
 from fdeck.physics.elements.shell4 import ShellGroup
 from fdeck.registry import FORMULATIONS, MATERIALS
 
+from helpers import term
+
 LINEAR = dict(type="fabric_membrane", density=1e-9,
               warp={"tension": [[0, 0], [0.01, 100.0]], "compression": [[0, 0], [-0.01, -20.0]]},
               weft={"tension": [[0, 0], [0.01, 50.0]], "compression": [[0, 0], [-0.01, -50.0]]},
@@ -79,7 +81,7 @@ def evaluate(g, state, x, d=None):
     g.update(x, np.zeros_like(x))
     f = np.zeros_like(x)
     g.add_forces(f)
-    return f, g.director_forces(len(x)), state.m_int, g.strain_energy()
+    return f, g.director_forces(len(x)), state.m_int, term(g, "strain_energy")
 
 
 def patch(triangles=False, seed=0, curved=0.0):

@@ -33,6 +33,7 @@ def test_pressure_and_power_of_a_uniformly_strained_element(rate):
     p = cube_problem(b1, b2)
     g = p.groups[0]
     visc = [e for e in p.effects if e.name == "bulk viscosity"][0]
+    visc.begin_step(0, p.steps[0])
     g.update(p.X, np.zeros_like(p.X))
     dt_e = g.rest_dt(g.rho)
     g.dt_e[:] = dt_e

@@ -165,13 +165,13 @@ def test_lumped_masses_and_inertia(triangles):
     inertia is at least the physical rho h^3/12 per area."""
     X, conn, ctype = patch(triangles, seed=8)
     g, st = make("sm", X, conn, ctype)
-    m = g.mass()
+    m = g.mass(g.rho)
     h, rho = SECTIONS["sm"]["thickness"], 1e-9
     assert m.sum() == pytest.approx(rho * h * g.area.sum(), rel=1e-12)
     if triangles:
         assert np.allclose(m[:, 0], rho * h * g.area / 3, rtol=1e-12)
         assert np.allclose(m[:, 2] + m[:, 3], rho * h * g.area / 3, rtol=1e-12)
-    assert (g.inertia() >= m * h**2 / 12 * (1 - 1e-12)).all()
+    assert (g.inertia(g.rho) >= m * h**2 / 12 * (1 - 1e-12)).all()
     assert g.added_rotational_inertia >= 0.0
 
 

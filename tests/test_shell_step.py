@@ -65,11 +65,11 @@ def exact_critical_dt(g, st, x, d):
                 dp[a], dm[a] = rodrigues(axis, d[a]), rodrigues(-axis, d[a])
                 K[:, a * k + i] = (gen_force(x, dp) - gen_force(x, dm)) / (2 * h)
     mass = np.zeros(n)
-    np.add.at(mass, g.conn.ravel(), g.mass().ravel())
+    np.add.at(mass, g.conn.ravel(), g.mass(g.rho).ravel())
     diag = [mass] * 3
     if rot:
         inertia = np.zeros(n)
-        np.add.at(inertia, g.conn.ravel(), g.inertia().ravel())
+        np.add.at(inertia, g.conn.ravel(), g.inertia(g.rho).ravel())
         diag += [inertia] * 3
     M = np.stack(diag, axis=1).ravel()
     s = 1.0 / np.sqrt(M)

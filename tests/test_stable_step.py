@@ -57,7 +57,7 @@ def exact_critical_dt(X, g, x):
         e[j] = h
         K[:, j] = (force(x + e.reshape(-1, 3)) - force(x - e.reshape(-1, 3))) / (2 * h)
     mass = np.zeros(len(X))
-    np.add.at(mass, g.conn.ravel(), g.mass().ravel())
+    np.add.at(mass, g.conn.ravel(), g.mass(g.rho).ravel())
     s = np.repeat(1.0 / np.sqrt(mass), 3)
     lam = np.linalg.eigvalsh(0.5 * (K + K.T) * s[:, None] * s[None, :]).max()
     g.update(x, np.zeros_like(x))

@@ -18,13 +18,15 @@ from fdeck.deck.model import Deck
 
 @dataclass
 class StepPlan:
-    """One step: its duration [s], dt safety, density per element of every group [t/mm^3], damping alpha [1/s]."""
+    """One step: its duration [s], dt safety, the density of every group's elements [t/mm^3] and the lumped nodal
+    mass [t] (and rotational inertia [t mm^2] when there are rotations) that follow from them."""
 
     name: str
     duration: float
     dt_safety: float
-    rho: list[np.ndarray]
-    alpha: float
+    rho: list[np.ndarray]  # per group (n_el,)
+    mass: np.ndarray  # (n_node,)
+    inertia: np.ndarray | None  # (n_node,) or None
     max_cycles: int | None
     added_mass: float  # fraction of the physical mass added by mass scaling
 
@@ -42,13 +44,12 @@ class Problem:
     deck: Deck
     X: np.ndarray  # (n_node, 3) reference coordinates [mm]
     cells: dict[str, np.ndarray]  # cell type -> conn, for output
-    groups: list  # element groups (see physics.elements)
+    groups: list  # element groups (``engine.group.ElementGroup``)
     effects: list  # engine.effect.Effect instances, only those the deck names
     node_sets: dict[str, np.ndarray]
     physical_mass: np.ndarray  # (n_node,) lumped mass without mass scaling [t]
     steps: list[StepPlan]
     reactions: dict[str, np.ndarray] = field(default_factory=dict)
-    damping: object | None = None
     measures: list = field(default_factory=list)  # objects with columns and evaluate(x, v)
     rotations: RotationalNodes | None = None  # only when a group carries directors (shells)
 
@@ -66,12 +67,16 @@ class Problem:
 
 
 class Context:
-    """What an effect's ``build`` may ask for; failures are CompileErrors at ``self.path``."""
+    """What an effect's or measure's ``build`` may ask for, complete before any of them is built: the deck, the
+    mesh and its sets, the element groups, the nodal rotations, the physical nodal mass and the exterior surface.
+    Failures are CompileErrors at ``self.path``; ``group`` is the group a section add-on is built for."""
 
-    def __init__(self, deck: Deck, mesh: MeshArrays, physical_mass: np.ndarray):
+    def __init__(self, deck: Deck, mesh: MeshArrays, groups: list, rotations, physical_mass: np.ndarray):
         self.deck, self.mesh, self.X, self.physical_mass = deck, mesh, mesh.X, physical_mass
+        self.groups, self.rotations = groups, rotations
         self.path: tuple = ()
-        self.rotations: RotationalNodes | None = None
+        self.group = None
+        self._surface = None
 
     def node_set(self, name: str) -> np.ndarray:
         if name not in self.mesh.node_sets:
@@ -80,6 +85,15 @@ class Context:
 
     def amplitude(self, name: str):
         return amplitude.make(name, self.deck.amplitudes, self.deck.duration)
+
+    @property
+    def surface(self) -> dict[str, np.ndarray]:
+        """The mesh's exterior: {"faces": (n_face, 4) node indices of hexahedron faces that belong to one element
+        only, outward by the right-hand rule, and shell elements (both sides are exterior; triangles repeat their
+        third node)}; computed on first use."""
+        if self._surface is None:
+            self._surface = {"faces": exterior_faces(self.groups)}
+        return self._surface
 
 
 def load_mesh(deck: Deck, base: Path) -> MeshArrays:
@@ -169,7 +183,7 @@ def setup_rotations(deck: Deck, groups: list, n_node: int) -> RotationalNodes | 
     normalised sum. Neighbouring elements whose normals disagree in sign (inconsistent node order) are an error.
     Then every such group derives its reference arrays from the directors (``set_directors``).
     """
-    rot = [g for g in groups if getattr(g, "rotational", False)]
+    rot = [g for g in groups if g.rotational]
     if not rot:
         return None
     acc, mag = np.zeros((n_node, 3)), np.zeros(n_node)
@@ -192,45 +206,60 @@ def setup_rotations(deck: Deck, groups: list, n_node: int) -> RotationalNodes | 
     return RotationalNodes(d0, nodes)
 
 
-def _lumped(groups: list, n_node: int, rho, per_element) -> np.ndarray:
-    """(n_node,) sum over the groups of per_element(g) (n_el, nodes per element), with each group's density
-    temporarily set to rho[i] when rho is given; groups for which per_element returns None are skipped."""
+def exterior_faces(groups: list) -> np.ndarray:
+    """(n_face, 4) exterior faces of the solid groups (faces owned by one hexahedron, node order outward) and the
+    shell elements of the other groups."""
+    from fdeck.physics.elements.hex8 import FACES
+
+    faces = []
+    solid = [g.conn[:, FACES].reshape(-1, 4) for g in groups if g.solid]
+    if solid:
+        f = np.concatenate(solid)
+        key = np.sort(f, axis=1)
+        _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+        faces.append(f[counts[inverse.ravel()] == 1])
+    faces += [g.conn for g in groups if not g.solid]
+    return np.concatenate(faces) if faces else np.zeros((0, 4), np.int64)
+
+
+def lumped(groups: list, n_node: int, rho: list[np.ndarray], per_element) -> np.ndarray:
+    """(n_node,) sum over the groups of per_element(g, rho_g) (n_el, nodes per element); groups for which
+    per_element returns None are skipped."""
     out = np.zeros(n_node)
-    for i, g in enumerate(groups):
-        saved = g.rho
-        if rho is not None:
-            g.rho = rho[i]
-        try:
-            values = per_element(g)
-            if values is not None:
-                np.add.at(out, g.conn.ravel(), values.ravel())
-        finally:
-            g.rho = saved
+    for g, r in zip(groups, rho):
+        values = per_element(g, r)
+        if values is not None:
+            np.add.at(out, g.conn.ravel(), values.ravel())
     return out
 
 
-def nodal_inertia(groups: list, n_node: int, rho: list[np.ndarray] | None = None) -> np.ndarray:
+def nodal_inertia(groups: list, n_node: int, rho: list[np.ndarray]) -> np.ndarray:
     """Lumped rotational inertia (n_node,) [t mm^2] of the groups that carry rotations (0 elsewhere)."""
-    return _lumped(groups, n_node, rho, lambda g: g.inertia() if getattr(g, "rotational", False) else None)
+    return lumped(groups, n_node, rho, lambda g, r: g.inertia(r) if g.rotational else None)
 
 
-def nodal_mass(groups: list, n_node: int, rho: list[np.ndarray] | None = None) -> np.ndarray:
-    """Lumped nodal mass (n_node,) [t] from the groups' densities (or the given ones)."""
-    return _lumped(groups, n_node, rho, lambda g: g.mass())
+def nodal_mass(groups: list, n_node: int, rho: list[np.ndarray]) -> np.ndarray:
+    """Lumped nodal mass (n_node,) [t] of the groups with densities rho (one (n_el,) array per group)."""
+    return lumped(groups, n_node, rho, lambda g, r: g.mass(r))
 
 
 def rest_dt(group, rho: np.ndarray, effects=()) -> np.ndarray:
     """(n_el,) rest stable steps [s] of a group's elements with densities rho, lowered by every effect acting on that
-    group that has a stiffness of its own (an effect with ``group`` and ``rest_dt``, e.g. fibre bending)."""
+    group with a stiffness of its own (an effect whose ``group`` is this one and whose ``rest_dt`` gives steps,
+    e.g. fibre bending)."""
     dt = group.rest_dt(rho)
     for e in effects:
-        if getattr(e, "group", None) is group and hasattr(e, "rest_dt"):
-            dt = np.minimum(dt, e.rest_dt(rho))
+        if e.group is group:
+            own = e.rest_dt(rho)
+            if own is not None:
+                dt = np.minimum(dt, own)
     return dt
 
 
 def plan_steps(deck: Deck, groups: list, physical_mass: np.ndarray, effects=()) -> list[StepPlan]:
     total = physical_mass.sum()
+    n_node = len(physical_mass)
+    rotational = any(g.rotational for g in groups)
     plans = []
     for s in deck.steps:
         rho = [g.rho.copy() for g in groups]
@@ -241,23 +270,31 @@ def plan_steps(deck: Deck, groups: list, physical_mass: np.ndarray, effects=()) 
             for i, g in enumerate(groups):
                 dt0 = rest_dt(g, g.rho, effects)  # rest stable step per element
                 rho[i] = g.rho * np.maximum(1.0, (ms.target_dt / (s.dt_safety * dt0)) ** 2)
-        added = (nodal_mass(groups, len(physical_mass), rho).sum() - total) / total
-        alpha = s.damping.mass_proportional if s.damping else 0.0
-        plans.append(StepPlan(s.name, s.duration, s.dt_safety, rho, alpha, s.max_cycles, float(added)))
+        mass = nodal_mass(groups, n_node, rho)
+        inertia = nodal_inertia(groups, n_node, rho) if rotational else None
+        added = (mass.sum() - total) / total
+        plans.append(StepPlan(s.name, s.duration, s.dt_safety, rho, mass, inertia, s.max_cycles, float(added)))
     return plans
+
+
+def _build(kind, card, ctx, problems: list, effects: list) -> None:
+    """Build one effect (skipping None: a step effect no step needs), collecting CompileErrors."""
+    try:
+        effect = kind.build(card, ctx)
+    except CompileError as exc:
+        problems += exc.problems
+        return
+    if effect is not None:
+        effects.append(effect)
 
 
 def compile_deck(deck: Deck, base: Path = Path(".")) -> Problem:
     """Build every array the engine needs. Raises CompileError listing every geometric or set problem."""
-    from fdeck.physics.effects import bulk_viscosity
-    from fdeck.physics.effects.damping import MassDamping
-
     mesh = load_mesh(deck, base)
     groups = build_groups(deck, mesh)
     rotations = setup_rotations(deck, groups, len(mesh.X))
-    mass = nodal_mass(groups, len(mesh.X))
-    ctx = Context(deck, mesh, mass)
-    ctx.rotations = rotations
+    mass = nodal_mass(groups, len(mesh.X), [g.rho for g in groups])
+    ctx = Context(deck, mesh, groups, rotations, mass)
     effects, problems = [], []
     for i, sec in enumerate(deck.sections):  # section add-ons act on that section's groups
         for j, card in enumerate(getattr(sec, "effects", [])):
@@ -265,17 +302,16 @@ def compile_deck(deck: Deck, base: Path = Path(".")) -> Problem:
             for g in groups:
                 if g.section_index == i:
                     ctx.group = g
-                    try:
-                        effects.append(registry.EFFECTS[card.type].build(card, ctx))
-                    except CompileError as exc:
-                        problems += exc.problems
+                    _build(registry.EFFECTS[card.type], card, ctx, problems, effects)
+    ctx.group = None
     for section in ("boundary", "loads"):
         for i, card in enumerate(getattr(deck, section)):
             ctx.path = (section, i)
-            try:
-                effects.append(registry.EFFECTS[card.type].build(card, ctx))
-            except CompileError as exc:
-                problems += exc.problems
+            _build(registry.EFFECTS[card.type], card, ctx, problems, effects)
+    for name, kind in registry.EFFECTS.items():  # step settings (damping, bulk viscosity), built when a step asks
+        if kind.section == "step":
+            ctx.path = ("steps",)
+            _build(kind, [getattr(s, name) for s in deck.steps], ctx, problems, effects)
     reactions = {}
     for i, name in enumerate(deck.output.reactions):
         ctx.path = ("output", "reactions", i)
@@ -284,7 +320,6 @@ def compile_deck(deck: Deck, base: Path = Path(".")) -> Problem:
         except CompileError as exc:
             problems += [(("output", "reactions", i), m) for _, m in exc.problems]
     measures = []
-    ctx.groups = groups
     for i, card in enumerate(deck.output.measures):
         ctx.path = ("output", "measures", i)
         try:
@@ -294,12 +329,5 @@ def compile_deck(deck: Deck, base: Path = Path(".")) -> Problem:
     if problems:
         raise CompileError(problems)
     steps = plan_steps(deck, groups, mass, effects)
-    damping = None
-    if any(s.alpha > 0 for s in steps):  # built only when a step asks for it
-        damping = MassDamping(mass.copy(), rotational=rotations is not None)
-        effects.append(damping)
-    viscosity = bulk_viscosity.build(deck.steps, groups, np.cumsum([s.duration for s in steps]))
-    if viscosity is not None:
-        effects.append(viscosity)
-    return Problem(deck, mesh.X, mesh.cells, groups, effects, mesh.node_sets, mass, steps, reactions, damping,
-                   measures, rotations)
+    return Problem(deck, mesh.X, mesh.cells, groups, effects, mesh.node_sets, mass, steps, reactions, measures,
+                   rotations)

@@ -16,6 +16,7 @@ from fdeck import registry
 from fdeck.deck.base import Card
 from fdeck.deck.errors import unknown_name
 from fdeck.deck.section import SectionBase
+from fdeck.deck.steps import BulkViscosity, Damping
 
 registry.load_plugins()
 
@@ -212,19 +213,6 @@ class MassScaling(Card):
         return self
 
 
-class Damping(Card):
-    mass_proportional: float = Field(ge=0, description="alpha in f = -alpha m v [1/s]; 2 w damps a mode of "
-                                     "angular frequency w critically.")
-
-
-class BulkViscosity(Card):
-    """Viscous pressure on the volumetric strain rate of solid elements (Abaqus *BULK VISCOSITY defaults)."""
-
-    linear: float = Field(0.06, ge=0, le=1, description="b1: fraction of critical damping of each element's "
-                          "fastest mode [-].")
-    quadratic: float = Field(1.2, ge=0, le=10, description="b2: quadratic coefficient, compression only [-].")
-
-
 class Step(Card):
     name: str = "step"
     duration: float = Field(gt=0, description="Step duration [s].")
@@ -233,7 +221,8 @@ class Step(Card):
     damping: Damping | None = None
     bulk_viscosity: BulkViscosity | None = Field(None, description="Bulk viscosity in this step ({} for the "
                                                  "defaults b1 = 0.06, b2 = 1.2); none when absent.")
-    max_cycles: int | None = Field(None, ge=1, description="Stop the step after this many cycles (a guard).")
+    max_cycles: int | None = Field(None, ge=1, description="End this step after this many cycles (a guard); the "
+                                   "next step starts there with its own duration; summary.json names such steps.")
 
 
 class Output(Card):

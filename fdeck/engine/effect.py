@@ -1,34 +1,65 @@
-"""What the engine needs from an effect (boundary condition, load, damping, section add-on).
+"""What the engine needs from an effect (boundary condition, load, damping, section add-on, tool contact).
 
-An effect is built by the compiler only when the deck names it. The engine calls, per cycle:
-``add_force(t, x, v, f)`` for effects with ``ledger`` in {"external", "damping", "internal"}: the effect adds its
-nodal forces [N] to f (n_node, 3), the array of that ledger entry (internal forces carry the resisting sign);
-``constrain(t_next, dt, x, v)`` for effects with ``constrains = True``: overwrite prescribed velocities
-v (n_node, 3) [mm/s] at the half step so that positions at t_next are as prescribed.
-Internal effects report their stored energy [mJ] through ``energy()`` and their step limit through
-``stable_dt()``. An internal effect with an ``energy_column`` (e.g. "bending_energy") gets that history column of its
-own (effects sharing a name are summed), so its share of the internal energy stays visible in the ledger.
+An effect is built by the compiler only when the deck names it. Per cycle n -> n+1 the engine calls, in this order:
+
+1. ``begin_step(k, plan)`` once at the start of step k (``plan`` a ``compile.problem.StepPlan``: densities, nodal
+   mass, damping factor of the step);
+2. ``constrain(t_next, dt, x, v)`` for effects with ``constrains = True``: overwrite prescribed velocities
+   v (n_node, 3) [mm/s] at the half step so that positions at t_next are as prescribed;
+3. ``advance(t_next, dt, dt_avg)`` for effects with ``moves = True``: move the effect's own bodies (a rigid tool)
+   to t_next, before the blank's forces there are computed;
+4. ``add_force(t, x, v, f)`` for effects with ``forces`` set: add nodal forces [N] at (t, x, v) to f (n_node, 3),
+   the engine array named by ``forces``:
+   - "external": a load; the engine integrates its work into ``external_work``;
+   - "damping": a dissipative force; the engine integrates its work into ``damping_energy``;
+   - "internal": a force with the resisting sign (f_int) whose energy the effect books itself in its ``terms``
+     (a stored spring energy, a friction dissipation, a tool's work);
+5. ``stable_dt()``: the effect's own limit on the time step [s] (inf when none).
+
+A section add-on names the element ``group`` it acts on; if it has a stiffness of its own, ``rest_dt(rho)`` gives
+the rest steps (n_el,) [s] of that group's elements with it, for mass scaling and ``fdeck info`` (None otherwise).
+
+Ledger: ``terms`` (tuple of ``engine.ledger.Term``) and ``term_values()`` give the effect's named energies and
+history columns (see ``engine.ledger``). Rotational effects (``rotational = True``) are bound once to the nodal
+rotations with ``bind(rotations)``.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from fdeck.engine.ledger import Term
+
 
 class Effect:
     name = "effect"
-    ledger: str | None = None  # "external", "damping", "internal" or None (constraint only)
+    forces: str | None = None  # "external", "damping", "internal" or None (no forces)
     constrains = False
-    energy_column: str | None = None  # own history column for an internal effect's stored energy
+    moves = False
+    rotational = False
+    terms: tuple[Term, ...] = ()
+    group = None  # the element group of a section add-on
 
-    def add_force(self, t: float, x: np.ndarray, v: np.ndarray, f: np.ndarray) -> None:
+    def begin_step(self, index: int, plan) -> None:
         pass
 
     def constrain(self, t_next: float, dt: float, x: np.ndarray, v: np.ndarray) -> None:
         pass
 
-    def energy(self) -> float:
-        return 0.0
+    def advance(self, t_next: float, dt: float, dt_avg: float) -> None:
+        pass
+
+    def add_force(self, t: float, x: np.ndarray, v: np.ndarray, f: np.ndarray) -> None:
+        pass
+
+    def term_values(self) -> tuple[float, ...]:
+        return ()
 
     def stable_dt(self) -> float:
         return np.inf
+
+    def bind(self, rotations) -> None:
+        pass
+
+    def rest_dt(self, rho: np.ndarray) -> np.ndarray | None:
+        return None

@@ -4,10 +4,12 @@ Per cycle n (Belytschko, Liu & Moran, Nonlinear FE for Continua and Structures, 
     v(n+1/2) = v(n-1/2) + dt_avg a(n)          then prescribed velocities are imposed (reactions R = m dv / dt_avg)
     x(n+1)   = x(n) + dt v(n+1/2)
     forces at x(n+1) -> a(n+1); stable step from the groups' current wave moduli.
-Ledger at t(n): kinetic energy from v(n) = (v(n-1/2) + v(n+1/2)) / 2; internal energy is the STORED energy
-(hyperelastic strain energy + hourglass springs + other internal effects), not the integrated internal work, so
-the balance error KE + IE + dissipated - external work exposes forces inconsistent with energies or instability;
-external work (loads and reactions) and damping dissipation are integrated with the trapezoidal rule.
+Ledger at t(n) (``engine.ledger``): kinetic energy from v(n) = (v(n-1/2) + v(n+1/2)) / 2; internal energy is the
+STORED energy the groups and effects report (strain energy, hourglass and other springs), not the integrated
+internal work, so the balance error KE + stored + dissipated - work exposes forces inconsistent with energies or
+instability; the engine integrates the work of external forces and reactions and the dissipation of damping forces
+with the trapezoidal rule, the sources book their own work and dissipation as named terms.
+Effects that move bodies of their own (rigid tools, ``Effect.moves``) advance them to t(n+1) after the positions.
 
 Rotational degrees of freedom (``engine.rotation``) exist only when the problem has groups that need them
 (``problem.rotations`` is not None, e.g. shells): then nodal directors and angular velocities are advanced beside
@@ -26,6 +28,7 @@ import numba
 import numpy as np
 
 from fdeck.engine.integrate import drift, kick
+from fdeck.engine.ledger import Ledger
 from fdeck.engine.rotation import Rotations, drift_rot, kick_rot
 
 
@@ -51,6 +54,7 @@ class Result:
     history: list[list[float]] = field(default_factory=list)
     columns: list[str] = field(default_factory=list)
     added_mass: list[float] = field(default_factory=list)
+    stopped_steps: list[str] = field(default_factory=list)  # steps ended by their max_cycles
 
 
 class Sink:
@@ -64,35 +68,24 @@ class Sink:
     def progress(self, t: float, cycles: int, dt: float) -> None: ...
 
 
+def ledger(problem) -> Ledger:
+    """The run's ledger: every group's and effect's terms, after the core columns and (with rotational dofs) the
+    rotational share of the kinetic energy."""
+    extra = ("rotational_kinetic_energy",) if problem.rotations is not None else ()
+    return Ledger(list(problem.groups) + list(problem.effects), extra)
+
+
 def history_columns(problem) -> list[str]:
-    """History columns. Problems with rotational dofs add the rotational share of the kinetic energy (which
-    ``kinetic_energy`` includes), the groups' own energy parts (e.g. bending) and the reaction moments."""
-    cols = ["time", "dt", "kinetic_energy", "internal_energy", "strain_energy", "hourglass_energy",
-            "damping_energy", "external_work", "energy_balance_error"]
-    rotations = getattr(problem, "rotations", None) is not None
-    if rotations:
-        cols.append("rotational_kinetic_energy")
-    cols += group_energy_columns(problem)
-    cols += effect_energy_columns(problem)
+    """History columns: the ledger's, then the reactions (forces, and moments with rotational dofs) of the sets
+    named in ``output.reactions``, then the measures' columns."""
+    cols = list(ledger(problem).columns)
     for name in problem.reactions:
         cols += [f"reaction_{name}_{c}" for c in "xyz"]
-        if rotations:
+        if problem.rotations is not None:
             cols += [f"reaction_{name}_m{c}" for c in "xyz"]
     for m in problem.measures:
         cols += m.columns
     return cols
-
-
-def group_energy_columns(problem) -> list[str]:
-    """Named parts of the groups' strain energy (``group.energy_parts``, e.g. bending_energy), in order."""
-    names = [n for g in problem.groups for n in getattr(g, "energy_parts", ())]
-    return list(dict.fromkeys(names))
-
-
-def effect_energy_columns(problem) -> list[str]:
-    """Own ledger columns of internal effects (``Effect.energy_column``), in first-appearance order."""
-    names = [e.energy_column for e in problem.effects if e.ledger == "internal" and e.energy_column]
-    return list(dict.fromkeys(names))
 
 
 class _Timer:
@@ -124,24 +117,24 @@ def run(problem, sink: Sink, should_stop=lambda: False) -> Result:
 def _run(problem, sink: Sink, should_stop) -> Result:
     res = Result(columns=history_columns(problem))
     groups, effects = problem.groups, problem.effects
-    forcing = [e for e in effects if e.ledger is not None]
-    energy_cols = effect_energy_columns(problem)
-    part_cols = group_energy_columns(problem)
-    own = {c: [e for e in forcing if e.ledger == "internal" and e.energy_column == c] for c in energy_cols}
+    book = ledger(problem)
+    forcing = [e for e in effects if e.forces is not None]
     constraints = [e for e in effects if e.constrains]
+    movers = [e for e in effects if e.moves]
     X = problem.X
     n = len(X)
     x, v = X.copy(), np.zeros((n, 3))
     f_int, f_ext, f_damp = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3))
+    target = {"internal": f_int, "external": f_ext, "damping": f_damp}
     fe_prev = np.zeros((n, 3))  # external + reaction force at the previous cycle
     fd_prev = np.zeros((n, 3))  # damping force at the previous cycle
     dx = np.zeros((n, 3))  # last position increment
     v_old, reaction = np.zeros((n, 3)), np.zeros((n, 3))
     rot = None
-    if getattr(problem, "rotations", None) is not None:
+    if problem.rotations is not None:
         rot = Rotations(problem.rotations.d0, problem.rotations.nodes)
         for obj in list(groups) + list(effects):
-            if getattr(obj, "rotational", False):
+            if obj.rotational:
                 obj.bind(rot)
     ke_rot = 0.0
     timer = _Timer()
@@ -149,37 +142,27 @@ def _run(problem, sink: Sink, should_stop) -> Result:
     frame_times = np.linspace(0.0, T, problem.deck.output.frames + 1)
     hist_times = np.linspace(0.0, T, problem.deck.output.history_points)
     next_frame, next_hist = 0, 0
-    w_ext = d_damp = d_hg = 0.0
+    w_ext = d_damp = 0.0
     energy0 = None
     t = 0.0
     wall0 = time.perf_counter()
     last_progress = wall0
 
     def forces(t, x, v):
-        """Fill f_int, f_ext, f_damp at (t, x, v); returns (stored internal, hourglass stored, hourglass power)."""
+        """Fill f_int, f_ext, f_damp (and the moments) at (t, x, v)."""
         f_int.fill(0.0)
         f_ext.fill(0.0)
         f_damp.fill(0.0)
         if rot is not None:
             rot.clear()
-        se = hg = p_hg = 0.0
         t0 = time.perf_counter()
         for g in groups:
             g.update(x, v)
             g.add_forces(f_int)
-            se += g.strain_energy()
-            h, p = g.hourglass_energy()
-            hg += h
-            p_hg += p
             t0 = timer.add(g.name, t0)
-        internal = se + hg
         for e in forcing:
-            target = f_int if e.ledger == "internal" else f_ext if e.ledger == "external" else f_damp
-            e.add_force(t, x, v, target)
-            if e.ledger == "internal":
-                internal += e.energy()
+            e.add_force(t, x, v, target[e.forces])
             t0 = timer.add(e.name, t0)
-        return internal, se, hg, p_hg
 
     def check(t):
         for g in groups:
@@ -189,28 +172,24 @@ def _run(problem, sink: Sink, should_stop) -> Result:
                 raise RunStopped(cause, t, el)
 
     def stable_dt(safety):
-        return safety * min([g.stable_dt() for g in groups] + [e.stable_dt() for e in forcing])
+        return safety * min([g.stable_dt() for g in groups] + [e.stable_dt() for e in effects])
 
     try:
-        internal, se, hg, p_hg = forces(0.0, x, v)
-        check(0.0)
         dt_prev = 0.0
         t_step_end = 0.0
-        for plan in problem.steps:
+        for k, plan in enumerate(problem.steps):
             t_step_end += plan.duration
             for g, rho in zip(groups, plan.rho):
-                g.rho = rho
-            from fdeck.compile.problem import nodal_mass  # plain numpy helper, no deck types
-
-            m = nodal_mass(groups, n)
+                g.set_density(rho)
+            m = plan.mass
             inv_m = 1.0 / m
             if rot is not None:
-                from fdeck.compile.problem import nodal_inertia
-
-                rot.set_inertia(nodal_inertia(groups, n))
-            if problem.damping is not None:
-                problem.damping.mass[:] = m
-                problem.damping.alpha = plan.alpha
+                rot.set_inertia(plan.inertia)
+            for e in effects:
+                e.begin_step(k, plan)
+            if k == 0:
+                forces(0.0, x, v)
+                check(0.0)
             res.added_mass.append(plan.added_mass)
             dt_next = stable_dt(plan.dt_safety)
             step_cycles = 0
@@ -219,7 +198,10 @@ def _run(problem, sink: Sink, should_stop) -> Result:
                     res.status, res.message = "interrupted", f"stopped by signal at t = {t:.6g} s"
                     break
                 if plan.max_cycles is not None and step_cycles >= plan.max_cycles:
-                    res.message = f"step '{plan.name}' reached max_cycles = {plan.max_cycles}"
+                    res.stopped_steps.append(plan.name)
+                    res.message = (f"step '{plan.name}' stopped at max_cycles = {plan.max_cycles}, "
+                                   f"t = {t:.6g} s of {t_step_end:.6g} s")
+                    t_step_end = t  # the next step starts here and keeps its own duration
                     break
                 t0 = time.perf_counter()
                 dt = min(dt_next, t_step_end - t)
@@ -243,19 +225,16 @@ def _run(problem, sink: Sink, should_stop) -> Result:
                     w_ext += w
                     d_damp += dd
                     ke += ke_rot
-                d_hg += p_hg * dt_avg
-                if energy0 is None:
-                    energy0 = ke + internal
-                err = ke + internal + d_damp + d_hg - w_ext - energy0
-                if not math.isfinite(ke + internal):
+                book.integrate(dt_avg)
+                if not math.isfinite(ke):
                     raise RunStopped("non-finite energy (NaN or overflow in forces)", t)
+                if energy0 is None:
+                    energy0 = book.energy(ke)
                 if next_hist < len(hist_times) and t >= hist_times[next_hist] - 1e-12 * T:
-                    row = [t, dt, ke, internal, se, hg + d_hg, d_damp, w_ext, err]
-                    if rot is not None:
-                        row.append(ke_rot)
-                    row += [sum(g.energy_part(c) for g in groups if c in getattr(g, "energy_parts", ()))
-                            for c in part_cols]
-                    row += [sum(e.energy() for e in own[c]) for c in energy_cols]
+                    extra = [ke_rot] if rot is not None else []
+                    row, _ = book.row(t, dt, ke, w_ext, d_damp, energy0, extra)
+                    if not all(math.isfinite(r) for r in row[:len(book.columns)]):
+                        raise RunStopped("non-finite energy (NaN or overflow in forces)", t)
                     for nodes in problem.reactions.values():
                         row += reaction[nodes].sum(axis=0).tolist()
                         if rot is not None:
@@ -268,13 +247,15 @@ def _run(problem, sink: Sink, should_stop) -> Result:
                     sink.history(row)
                     while next_hist < len(hist_times) and hist_times[next_hist] <= t + 1e-12 * T:
                         next_hist += 1
+                for e in movers:
+                    e.advance(t + dt, dt, dt_avg)
                 t += dt
                 dt_prev = dt
                 res.cycles += 1
                 step_cycles += 1
                 res.dt_min, res.dt_max = min(res.dt_min, dt), max(res.dt_max, dt)
                 t0 = timer.add("integrator", t0)
-                internal, se, hg, p_hg = forces(t, x, v)
+                forces(t, x, v)
                 t0 = time.perf_counter()
                 check(t)
                 dt_next = stable_dt(plan.dt_safety)
@@ -291,7 +272,7 @@ def _run(problem, sink: Sink, should_stop) -> Result:
                 if now - last_progress > 0.5:
                     sink.progress(t, res.cycles, dt)
                     last_progress = now
-            if res.status == "interrupted" or res.message:
+            if res.status == "interrupted":
                 break
         if res.status == "running":
             res.status = "completed"

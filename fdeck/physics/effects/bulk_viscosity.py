@@ -16,8 +16,8 @@ The element's uniform-dilatation mode feels the pressure in all three directions
 with xi = 3 (b1 + b2^2 L |min(e, 0)| / c), the damped central-difference limit of that mode (with b1 alone,
 as Abaqus states it, a 1 x 1 x 1 mm steel bar element with nu = 0 goes unstable at b1 = 0.2).
 
-Applies to every solid group (groups with uniform gradients ``b``, ``V0``, ``L0`` and step estimates ``dt_e``).
-Coefficients are per step; a step without `bulk_viscosity` runs none of this.
+Applies to every solid group (``group.solid``: uniform gradients ``b``, ``V0``, ``L0`` and step estimates ``dt_e``).
+A step setting (``steps[i].bulk_viscosity``): coefficients per step; a step without it runs none of this.
 """
 
 from __future__ import annotations
@@ -26,8 +26,11 @@ import math
 
 import numpy as np
 
+from fdeck.deck.steps import BulkViscosity as BulkViscosityCard
 from fdeck.engine.effect import Effect
+from fdeck.engine.gather import gather_add
 from fdeck.jit import njit_parallel, prange
+from fdeck.registry import EffectKind, register_effect
 
 
 @njit_parallel
@@ -87,21 +90,19 @@ class BulkViscosity(Effect):
     """Bulk viscosity on the solid groups; coefficients (b1, b2) per step, zero in steps that do not ask for it."""
 
     name = "bulk viscosity"
-    ledger = "damping"
+    forces = "damping"
 
-    def __init__(self, groups, step_ends, coefficients):
+    def __init__(self, groups, coefficients):
         self.groups = groups  # solid element groups
-        self.step_ends = np.asarray(step_ends)  # (n_step,) end time of each step [s]
         self.coefficients = coefficients  # [(b1, b2)] per step
         self.buffers = [(np.zeros((len(g.conn), 8, 3)), np.zeros(len(g.conn)), np.zeros(len(g.conn)))
                         for g in groups]
         self.b1 = self.b2 = 0.0
 
-    def add_force(self, t, x, v, f):
-        from fdeck.engine.gather import gather_add
+    def begin_step(self, index, plan):
+        self.b1, self.b2 = self.coefficients[index]
 
-        k = min(int(np.searchsorted(self.step_ends, t * (1 + 1e-12))), len(self.coefficients) - 1)
-        self.b1, self.b2 = self.coefficients[k]
+    def add_force(self, t, x, v, f):
         if self.b1 == 0.0 and self.b2 == 0.0:
             return
         for g, (fe, power, xi) in zip(self.groups, self.buffers):
@@ -118,11 +119,13 @@ class BulkViscosity(Effect):
         return out
 
 
-def build(steps, groups, step_ends):
-    """The effect, or None when no step asks for bulk viscosity. steps: deck Step cards."""
-    coeffs = [(s.bulk_viscosity.linear, s.bulk_viscosity.quadratic) if s.bulk_viscosity else (0.0, 0.0)
-              for s in steps]
-    solids = [g for g in groups if hasattr(g, "b") and hasattr(g, "dt_e")]
+def build(cards: list, ctx) -> BulkViscosity | None:
+    """The effect, or None when no step asks for it or no group is solid. cards: each step's card or None."""
+    coeffs = [(c.linear, c.quadratic) if c is not None else (0.0, 0.0) for c in cards]
+    solids = [g for g in ctx.groups if g.solid]
     if not solids or all(c == (0.0, 0.0) for c in coeffs):
         return None
-    return BulkViscosity(solids, step_ends, coeffs)
+    return BulkViscosity(solids, coeffs)
+
+
+register_effect(EffectKind("bulk_viscosity", BulkViscosityCard, build, "step"))

@@ -71,6 +71,7 @@ from pydantic import Field, FiniteFloat, model_validator
 from fdeck.compile.errors import CompileError
 from fdeck.deck.base import Card
 from fdeck.engine.effect import Effect
+from fdeck.engine.ledger import STORED, Term
 from fdeck.engine.gather import gather_add, node_slots
 from fdeck.jit import njit, njit_parallel, prange
 from fdeck.registry import EffectKind, register_effect
@@ -483,8 +484,8 @@ def element_steps(conn, R, mass, dt_group, dt_e):
 class FibreBendingEffect(Effect):
     """Bending energy of the fibres of one element group; see the module docstring for the formulation."""
 
-    ledger = "internal"
-    energy_column = "bending_energy"
+    forces = "internal"
+    terms = (Term("bending_energy", STORED),)
 
     def __init__(self, name, group, X, geo, left, right, fam, laws, thickness):
         self.name, self.group = name, group
@@ -525,15 +526,15 @@ class FibreBendingEffect(Effect):
         gather_add(self.fe, self.ptr, self.slots, f)
         self._energy = float(np.sum(self.e_h))
 
-    def energy(self) -> float:
+    def term_values(self) -> tuple[float]:
         """Stored bending energy [mJ] at the last ``add_force``."""
-        return self._energy
+        return (self._energy,)
 
     def nodal_mass(self) -> np.ndarray:
         """(n_node,) lumped mass of this group's elements [t] with the group's current density (mass scaling
         included); nodes shared with other groups get only this group's share, which errs on the safe side."""
         if self._mass_rho is not self.group.rho:
-            self._mass, self._mass_rho = self._lump(self.group.mass()), self.group.rho
+            self._mass, self._mass_rho = self._lump(self.group.mass(self.group.rho)), self.group.rho
         return self._mass
 
     def _lump(self, m_el: np.ndarray) -> np.ndarray:
@@ -554,7 +555,7 @@ class FibreBendingEffect(Effect):
     def rest_dt(self, rho: np.ndarray) -> np.ndarray:
         """(n_el,) element steps [s] at rest, bending and continuum together, with the group's densities rho
         (n_el,) [t/mm^3]: what mass scaling to a target step and ``fdeck info`` need before the run."""
-        m = self._lump(self.group.mass() * (np.asarray(rho, float) / self.group.rho)[:, None])
+        m = self._lump(self.group.mass(rho))
         rows, R, out = np.zeros_like(self.rows), np.zeros_like(self.R), np.zeros(len(self.conn))
         element_rows(self.G, self.el_hinge, self.dchi_rest, self.kS_rest, rows)
         gather_rows(rows, self.ptr, self.slots, R)

@@ -35,7 +35,7 @@ class NodalForce(Card):
 
 
 class BodyForce(Effect):
-    ledger = "external"
+    forces = "external"
 
     def __init__(self, name, nodes, per_node, amplitude):
         self.name, self.nodes, self.per_node, self.amplitude = name, nodes, per_node, amplitude
@@ -74,7 +74,7 @@ class NodalMoment(Card):
 class Moment(Effect):
     """External moments into the rotational state (its work enters the ledger through the rotation increments)."""
 
-    ledger = "external"
+    forces = "external"
     rotational = True
 
     def __init__(self, name, nodes, per_node, amplitude):

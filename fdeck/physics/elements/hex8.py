@@ -21,6 +21,7 @@ import math
 import numpy as np
 
 from fdeck.compile.errors import CompileError
+from fdeck.engine.ledger import DISSIPATED, STORED, Term
 from fdeck.jit import njit, njit_parallel, prange
 from fdeck.physics.tensor import det3
 from fdeck.registry import FormulationKind, register_formulation
@@ -265,14 +266,17 @@ def directional_lengths(b: np.ndarray, frame: np.ndarray) -> np.ndarray:
 
 
 class Hex8Group:
-    """One homogeneous group: hexahedra of one section (one formulation x one material).
+    """One homogeneous group: hexahedra of one section (one formulation x one material), an
+    ``engine.group.ElementGroup``.
 
-    The engine calls ``update(x, v)`` once per cycle, then ``add_forces(f_int)``; energies and the stable step
-    are read from attributes. All arrays are allocated once here.
+    The engine calls ``update(x, v)`` once per cycle, then ``add_forces(f_int)``. All arrays are allocated once here.
+    Ledger: the strain energy, and with hourglass control its stored spring energy and viscous dissipation.
     """
 
     nodes_per_element = 8
     cell_type = "hexahedron"
+    solid = True
+    rotational = False
 
     def __init__(self, name, formulation, X, conn, ids, material, params, frame, rho, hourglass=None):
         from fdeck.engine.gather import node_slots
@@ -280,7 +284,8 @@ class Hex8Group:
         self.name, self.formulation, self.material = name, formulation, material
         self.conn, self.ids = np.ascontiguousarray(conn, np.int64), ids
         geo = prepare(X, self.conn)
-        self.__dict__.update(geo)
+        self.dN, self.w, self.V0, self.b = geo["dN"], geo["w"], geo["V0"], geo["b"]
+        self.gamma, self.L0, self.detJ_min = geo["gamma"], geo["L0"], geo["detJ_min"]
         n_el = len(conn)
         reduced = formulation == "reduced"
         n_qp = 1 if reduced else 8
@@ -322,6 +327,11 @@ class Hex8Group:
         # hourglass springs in the stable step: a mode u_a = gamma_a has omega^2 = k |gamma|^2 / m_a with
         # m_a = rho V0 / 8, i.e. rho (c/L)^2 = rho omega^2 / 4 = 2 k max|gamma|^2 / V0
         self.dt_extra = 2.0 * self.k_hg * np.einsum("ema,ema->em", self.gamma, self.gamma).max(axis=1) / self.V0
+        self.terms = (Term("strain_energy", STORED),)
+        if self.has_hourglass:
+            self.terms += (Term("hourglass_energy", STORED),)
+            if hourglass.type == "viscous":
+                self.terms += (Term("hourglass_dissipation", DISSIPATED, rate=True),)
 
     # -- per cycle ---------------------------------------------------------------------------------
     def update(self, x, v):
@@ -343,13 +353,14 @@ class Hex8Group:
 
         gather_add(self.fe, self.ptr, self.slots, f_int)
 
-    def strain_energy(self) -> float:
-        """Stored hyperelastic energy sum_q w_q psi_q [mJ]."""
-        return float(np.einsum("eq,eq->", self.w, self.psi))
+    def term_values(self) -> tuple[float, ...]:
+        """Stored hyperelastic energy sum_q w_q psi_q [mJ]; hourglass stored energy [mJ] and viscous hourglass
+        dissipation rate [mW] when the group has hourglass control (see ``terms``)."""
+        values = (float(np.einsum("eq,eq->", self.w, self.psi)), float(self.e_hg.sum()), float(self.p_hg.sum()))
+        return values[:len(self.terms)]
 
-    def hourglass_energy(self) -> tuple[float, float]:
-        """(stored hourglass energy [mJ], viscous hourglass dissipation rate [mW])."""
-        return float(self.e_hg.sum()), float(self.p_hg.sum())
+    def set_density(self, rho: np.ndarray) -> None:
+        self.rho = np.ascontiguousarray(rho, float)
 
     def stable_dt(self) -> float:
         """Smallest element step [s] at the current moduli and densities (see ``element_dt``)."""
@@ -368,14 +379,14 @@ class Hex8Group:
         flat = int(np.argmin(self.J))
         return float(self.J.flat[flat]), int(self.ids[flat // self.J.shape[1]])
 
-    def mass(self) -> np.ndarray:
-        """Lumped element masses per node (n_el, 8) [t]: row sums of the consistent mass, int rho N_a dV."""
-        from fdeck.physics.elements.hex8 import GAUSS_2  # noqa: F401  (same module; kept explicit)
-
-        N = np.prod(1 + NODE_SIGNS[None, :, :] * GAUSS_2[:, None, :], axis=2) / 8.0  # (8 qp, 8 nodes)
+    def mass(self, rho: np.ndarray) -> np.ndarray:
+        """Lumped element masses per node (n_el, 8) [t] with densities rho (n_el,) [t/mm^3]: row sums of the
+        consistent mass, int rho N_a dV (V0 / 8 per node for the one-point element)."""
+        rho = np.asarray(rho, float)
         if self.w.shape[1] == 8:
-            return self.rho[:, None] * self.w @ N
-        return self.rho[:, None] * np.repeat(self.V0[:, None] / 8.0, 8, axis=1)
+            N = np.prod(1 + NODE_SIGNS[None, :, :] * GAUSS_2[:, None, :], axis=2) / 8.0  # (8 qp, 8 nodes)
+            return rho[:, None] * self.w @ N
+        return rho[:, None] * np.repeat(self.V0[:, None] / 8.0, 8, axis=1)
 
     # -- output ------------------------------------------------------------------------------------
     def cell_fields(self, idx=None) -> dict[str, np.ndarray]:

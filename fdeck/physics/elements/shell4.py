@@ -69,6 +69,7 @@ import numpy as np
 from pydantic import Field, model_validator
 
 from fdeck.compile.errors import CompileError
+from fdeck.engine.ledger import PART, STORED, Term
 from fdeck.deck.section import SectionBase
 from fdeck.jit import njit, njit_parallel, prange
 from fdeck.physics import presets
@@ -562,6 +563,7 @@ class ShellGroup:
     with directors (``rotational``) read and write the run's rotational state given to ``bind``."""
 
     nodes_per_element = 4
+    solid = False
 
     def __init__(self, name, section, X, conn, ids, material, params, rho, cell_type, orientation=None):
         from fdeck.engine.gather import node_slots
@@ -617,8 +619,10 @@ class ShellGroup:
         self._d_dummy = np.zeros((1, 3))
         self.detJ_min = np.linalg.norm(np.cross(np.einsum("ga,eai->egi", DN_GP[:, :, 0], self.Xe),
                                                 np.einsum("ga,eai->egi", DN_GP[:, :, 1], self.Xe)), axis=-1).min(1)
-        self.energy_parts = ("bending_energy", "transverse_shear_energy") if self.formulation == "sm" else \
+        # ledger: the whole stored energy, and the shares of bending and transverse shear where the section has them
+        parts = ("bending_energy", "transverse_shear_energy") if self.formulation == "sm" else \
             ("transverse_shear_energy",) if self.formulation == "ts" else ()
+        self.terms = (Term("strain_energy", STORED),) + tuple(Term(n, PART) for n in parts)
         if not self.has_dir:  # membrane: reference geometry from the element alone
             self._prepare(None)
 
@@ -780,15 +784,13 @@ class ShellGroup:
         if self.has_dir:
             gather_add(self.me, self.ptr, self.slots, self.rot.m_int)
 
-    def strain_energy(self) -> float:
-        """Stored energy [mJ]: the law's sum w psi + bending + transverse shear."""
-        return float(self.energy.sum())
+    def term_values(self) -> tuple[float, ...]:
+        """Stored energy [mJ] (the law's sum w psi + bending + transverse shear), then the shares in ``terms``."""
+        share = {"bending_energy": self.e_b, "transverse_shear_energy": self.e_s}
+        return (float(self.energy.sum()),) + tuple(float(share[t.name].sum()) for t in self.terms[1:])
 
-    def energy_part(self, name: str) -> float:
-        return float(self.e_b.sum()) if name == "bending_energy" else float(self.e_s.sum())
-
-    def hourglass_energy(self) -> tuple[float, float]:
-        return 0.0, 0.0
+    def set_density(self, rho: np.ndarray) -> None:
+        self.rho = np.ascontiguousarray(rho, float)
 
     def stable_dt(self) -> float:
         element_dt(self.modulus, self.wz / self.h, self.fz, self.L0, self.inv_len2, self.C, self.rho, self.dt_e)
@@ -804,13 +806,13 @@ class ShellGroup:
         flat = int(np.argmin(self.J))
         return float(self.J.flat[flat]), int(self.ids[flat // 4])
 
-    def mass(self) -> np.ndarray:
-        """Lumped masses per slot (n_el, 4) [t]: rho h integral N_a dA."""
-        return self.rho[:, None] * self.mass_shape
+    def mass(self, rho: np.ndarray) -> np.ndarray:
+        """Lumped masses per slot (n_el, 4) [t] with densities rho (n_el,): rho h integral N_a dA."""
+        return np.asarray(rho, float)[:, None] * self.mass_shape
 
-    def inertia(self) -> np.ndarray:
-        """Lumped rotational inertia per slot (n_el, 4) [t mm^2]: m_a r_e^2."""
-        return self.mass() * self.r2[:, None]
+    def inertia(self, rho: np.ndarray) -> np.ndarray:
+        """Lumped rotational inertia per slot (n_el, 4) [t mm^2] with densities rho (n_el,): m_a r_e^2."""
+        return self.mass(rho) * self.r2[:, None]
 
     def director_forces(self, n_node: int) -> np.ndarray:
         """(n_node, 3) sum of the element director forces dW/dd at each node [N mm] (tests, diagnostics)."""
@@ -834,9 +836,10 @@ class ShellGroup:
             "strain_energy_density": (np.einsum("egl,egl->e", w, self.psi[idx]) + self.e_b[idx] + self.e_s[idx]) / V0,
             "J": self.J[idx].mean(axis=1),
         }
-        if "bending_energy" in self.energy_parts:
+        parts = [t.name for t in self.terms]
+        if "bending_energy" in parts:
             out["bending_energy_density"] = self.e_b[idx] / V0
-        if "transverse_shear_energy" in self.energy_parts:
+        if "transverse_shear_energy" in parts:
             out["transverse_shear_energy_density"] = self.e_s[idx] / V0
         if self.material.diagnose is not None:
             names = self.material.diagnostics

@@ -1,0 +1,20 @@
+"""Cards of the step settings that the engine runs as effects (``physics.effects.damping``, ``bulk_viscosity``)."""
+
+from __future__ import annotations
+
+from pydantic import Field
+
+from fdeck.deck.base import Card
+
+
+class Damping(Card):
+    mass_proportional: float = Field(ge=0, description="alpha in f = -alpha m v [1/s]; 2 w damps a mode of "
+                                     "angular frequency w critically.")
+
+
+class BulkViscosity(Card):
+    """Viscous pressure on the volumetric strain rate of solid elements (Abaqus *BULK VISCOSITY defaults)."""
+
+    linear: float = Field(0.06, ge=0, le=1, description="b1: fraction of critical damping of each element's "
+                          "fastest mode [-].")
+    quadratic: float = Field(1.2, ge=0, le=10, description="b2: quadratic coefficient, compression only [-].")
