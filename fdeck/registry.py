@@ -1,8 +1,9 @@
 """Registries of material cards, element formulations and effects.
 
-Each plug-in module registers itself with one call at its end, and ``fdeck.physics`` imports every plug-in module
-explicitly. The deck builds its discriminated unions from these tables, the compiler looks kinds up here: nowhere
-else does code branch on a card's ``type``.
+A plug-in has two sides, each registered with one call: its card (``fdeck/cards/``, no numpy or numba; imported by
+``fdeck.cards``) and its kernels (``fdeck/physics/``; imported by ``fdeck.physics``). The deck builds its
+discriminated unions from the card tables, the compiler looks kinds up in the kernel tables: nowhere else does code
+branch on a card's ``type``.
 """
 
 from __future__ import annotations
@@ -15,7 +16,6 @@ from typing import Any, Callable
 class MaterialKind:
     """A constitutive law.
 
-    card: pydantic model with ``type: Literal[name]`` and ``density``.
     pack(card) -> float64 array (n_param,): canonical parameters, the same for every element of a section.
     evaluate(F, frame, params, state, P, psi, modulus): numba kernel over elements, shapes
         F (n_el, n_qp, 3, 3) deformation gradient; frame (n_el, 3, 3) rows = warp, weft, thickness unit vectors
@@ -34,7 +34,6 @@ class MaterialKind:
     """
 
     name: str
-    card: type
     pack: Callable[[Any], Any]
     evaluate: Callable
     point: Callable
@@ -46,43 +45,32 @@ class MaterialKind:
 
 @dataclass(frozen=True)
 class EffectKind:
-    """A boundary condition, load, damping or section-level add-on.
+    """A boundary condition, load, damping, tool contact or section-level add-on (its card: ``CardEntry``).
 
-    card: pydantic model with ``type: Literal[name]`` (for 'step' effects: the step's setting of that name).
     build(card, ctx) -> engine.effect.Effect, called by the compiler only for effects a deck names, with ``ctx`` a
-        ``compile.problem.Context`` (mesh, groups, rotations, surfaces, sets, amplitudes).
-    section: 'boundary' or 'loads' (the deck list the card goes in), 'section' (an add-on of a section, built once
+        ``compile.problem.Context`` (mesh, groups, rotations, surfaces, sets, amplitudes). The card's section says
+        how: 'boundary' or 'loads' (one per card of that deck list), 'section' (an add-on of a section, built once
         per group of that section, ``ctx.group``) or 'step' (a setting of every step, ``steps[i].<name>``: build gets
         the list of the steps' cards, None where a step has none, and returns an Effect or None when no step needs
         it; the effect learns the current step through ``begin_step``).
     """
 
     name: str
-    card: type
     build: Callable
-    section: str
 
 
 @dataclass(frozen=True)
 class FormulationKind:
-    """An element formulation (a way to turn nodal positions into forces for one element shape).
+    """An element formulation (a way to turn nodal positions into forces for one element shape); its section card,
+    description and accepted cell types are the ``CardEntry`` of the same name.
 
     build(name, section card, X, conn, ids, material kind, params, orientation, rho, cell_type) -> engine group
-    object, with orientation a ``fdeck.compile.orientation.ElementOrientation`` (per-element fibre frame data);
-    see fdeck.physics.elements.
-    card: the pydantic section card of this formulation (``formulation: Literal[name]`` plus its own fields), or None
-        for the solid section card of ``fdeck.deck.model`` (elements, material, orientation, hourglass).
-    cell_types: mesh cell types (meshio names) the formulation accepts.
-    plane_stress: the formulation carries only plane-stress laws (``MaterialKind.plane_stress``).
+    (``engine.group.ElementGroup``), with orientation a ``fdeck.compile.orientation.ElementOrientation``.
     """
 
     name: str
     build: Callable
-    description: str = ""
     nodes_per_element: int = 8
-    card: type | None = None
-    cell_types: tuple[str, ...] = ("hexahedron",)
-    plane_stress: bool = False
 
 
 @dataclass(frozen=True)
@@ -93,10 +81,33 @@ class MeasureKind:
     """
 
     name: str
-    card: type
     build: Callable
 
 
+@dataclass(frozen=True)
+class CardEntry:
+    """The deck side of a plug-in: its pydantic card, registered by a module of ``fdeck.cards`` that imports neither
+    numpy nor numba, so that reading and validating a deck never loads a kernel. The kernel side registers a kind of
+    the same name (``MaterialKind``, ``EffectKind``, ``FormulationKind``, ``MeasureKind``).
+
+    table: "material", "effect", "measure" or "formulation".
+    section: for effects, the deck list the card goes in ('boundary', 'loads', 'section' or 'step').
+    card: the pydantic model; for formulations the section card, None for the solid section of ``deck.model``.
+    description: one line for messages and the schema (formulations).
+    cell_types: mesh cell types (meshio names) a formulation accepts.
+    plane_stress: the formulation carries only plane-stress laws (``MaterialKind.plane_stress``).
+    """
+
+    name: str
+    card: type | None
+    table: str
+    section: str = ""
+    description: str = ""
+    cell_types: tuple[str, ...] = ("hexahedron",)
+    plane_stress: bool = False
+
+
+CARDS: dict[str, dict[str, CardEntry]] = {"material": {}, "effect": {}, "measure": {}, "formulation": {}}
 MATERIALS: dict[str, MaterialKind] = {}
 MEASURES: dict[str, MeasureKind] = {}
 EFFECTS: dict[str, EffectKind] = {}
@@ -126,6 +137,17 @@ def register_measure(kind: MeasureKind) -> None:
     _add(MEASURES, kind)
 
 
+def register_card(entry: CardEntry) -> None:
+    _add(CARDS[entry.table], entry)
+
+
+def cards(table: str, section: str | None = None) -> dict[str, CardEntry]:
+    """The registered cards of a table (and effect section), importing the card modules on first use."""
+    import fdeck.cards  # noqa: F401  (each card module registers itself)
+
+    return {k: v for k, v in CARDS[table].items() if section is None or v.section == section}
+
+
 def load_plugins() -> None:
-    """Import every plug-in module (each registers itself)."""
+    """Import every plug-in module (each registers its kernel side)."""
     import fdeck.physics  # noqa: F401

@@ -42,8 +42,8 @@ SPAN, WIDTH, ALPHA = 32.0, 40.0, 1.2
 
 def presets():
     """Numbers of the presets the closed forms need (read from the preset files, not repeated here)."""
-    from fdeck.physics.elements.shell4 import load_section_preset
-    from fdeck.physics.materials.fabric_membrane import load_preset
+    from fdeck.cards.shell_sections import load_section_preset
+    from fdeck.cards.fabric_membrane import load_preset
 
     sm, ts = load_section_preset("sm", "t300_3k"), load_section_preset("ts", "t300_3k")
     mat_ts = load_preset("t300_3k_ts")
@@ -183,7 +183,7 @@ def plots():
     import matplotlib.pyplot as plt
     import numpy as np
 
-    from fdeck.physics.materials.fabric_membrane import load_preset
+    from fdeck.cards.fabric_membrane import load_preset
 
     IMG.mkdir(parents=True, exist_ok=True)
     lines = []
@@ -247,7 +247,7 @@ def plots():
 def bias_report(h, plt, np):
     """Central shear angle against the pin-jointed net; shear stress by MODELS 6.1's normalisation against the
     card's tau / cos(gamma) (tau = dPhi/dgamma per reference volume, sigma_12 per current area: see the law)."""
-    from fdeck.physics.materials.fabric_membrane import load_preset
+    from fdeck.cards.fabric_membrane import load_preset
 
     W, H, t = 30.0, 120.0, presets()["h"]
     d, F = h["clamp_travel"], h["reaction_GRIP_HIGH_y"]

@@ -13,7 +13,7 @@ import fdeck.physics  # noqa: F401  (registers plug-ins)
 from fdeck.compile.mesh import plate
 from fdeck.compile.problem import setup_rotations
 from fdeck.physics.elements.shell4 import ShellGroup
-from fdeck.registry import FORMULATIONS, MATERIALS
+from fdeck.registry import CARDS, MATERIALS
 
 from helpers import term
 
@@ -57,13 +57,13 @@ def make(section: str, X, conn, cell_type="quad", mat=LINEAR, orientation=None, 
     minimal rotational state (``state.d`` the directors the group reads, ``state.m_int`` its moments).
     ``section``: a key of SECTIONS, or a formulation name with its card ``fields``."""
     kind = MATERIALS["fabric_membrane"]
-    card = kind.card(**mat)
+    card = CARDS["material"]["fabric_membrane"].card(**mat)
     p = kind.pack(card)
     n = len(conn)
     form = "ts" if section.startswith("ts") else section
     extra = {} if orientation is None else {"orientation": orientation}
     fields = SECTIONS[section] if fields is None else fields
-    sc = FORMULATIONS[form].card(formulation=form, material="m", **fields, **extra)
+    sc = CARDS["formulation"][form].card(formulation=form, material="m", **fields, **extra)
     g = ShellGroup("g", sc, X, conn, np.arange(1, n + 1), kind, np.broadcast_to(p, (n, len(p))),
                    np.full(n, card.density), cell_type)
     g.section_index = 0

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
+import fdeck.cards.fabric_hyper as fc
 import fdeck.physics.materials.fabric_hyper as fh
 
 from helpers import central_gradient, symmetric_central_gradient
@@ -21,7 +22,7 @@ MODE_NAMES = fh.MODES
 # ------------------------------------------------------------------------------------------------ helpers
 
 def card(preset=None, **fields):
-    return fh.FabricHyper(type="fabric_hyper", preset=preset, **fields)
+    return fc.FabricHyper(type="fabric_hyper", preset=preset, **fields)
 
 
 def params(preset=None, **fields):
@@ -138,7 +139,7 @@ def dpsi_comp_ref(c):
     return KCOMP * PC / I0C * ((1 - c / I0C) ** (-PC - 1) - 1)
 
 
-PRESETS = fh.available_presets()
+PRESETS = fc.available_presets()
 
 
 # ------------------------------------------------------------------------------------------------ derivatives
@@ -260,7 +261,7 @@ def test_weft_branch_jump_as_published():
 
 def test_tabulated_form():
     # Hand-integrated values of a piecewise-linear dpsi/dx (exact arithmetic, 1e-12).
-    f = fh.Tabulated(form="tabulated", table=[(0.0, 0.0), (0.01, 1.0), (0.02, 4.0)])
+    f = fc.Tabulated(form="tabulated", table=[(0.0, 0.0), (0.01, 1.0), (0.02, 4.0)])
     p = np.zeros(fh.BLOCK)
     p[0] = f.form_id
     p[1:1 + len(f.packed())] = f.packed()
@@ -272,9 +273,9 @@ def test_tabulated_form():
     for x in (-0.3, -0.05, 0.02, 0.2):
         assert fh._form(q, 2 * fh.BLOCK, x) == pytest.approx((3 * x * x, 6 * x, 6.0), rel=1e-12)
     with pytest.raises(ValidationError, match="x = 0"):
-        fh.Tabulated(form="tabulated", table=[(0.0, 0.1), (0.01, 1.0)])
+        fc.Tabulated(form="tabulated", table=[(0.0, 0.1), (0.01, 1.0)])
     with pytest.raises(ValidationError, match="increasing"):
-        fh.Tabulated(form="tabulated", table=[(0.0, 0.0), (-0.01, 1.0)])
+        fc.Tabulated(form="tabulated", table=[(0.0, 0.0), (-0.01, 1.0)])
 
 
 # ------------------------------------------------------------------------------------------------ homogeneous
@@ -465,7 +466,7 @@ def test_modulus_follows_warp_tangent():
 def test_every_preset_validates_and_packs(preset):
     c = card(preset)
     p = fh.pack(c)
-    assert c.density > 0 and p.shape == (fh.N_PARAM,) and np.isfinite(p).all()
+    assert c.density > 0 and p.shape == (fh.PARAMS.size,) and np.isfinite(p).all()
     assert all(getattr(c, m) is not None for m in MODE_NAMES)
 
 
@@ -477,7 +478,7 @@ def test_presets_shipped():
     assert (c.compaction.K_comp, c.compaction.I0, c.compaction.p) == (KCOMP, I0C, PC)
     assert (c.transverse_shear_warp.K, c.transverse_shear_weft.K) == (KTS1, KTS2)
     # compressive coefficient = 1 % of the quadratic tensile coefficient
-    assert fh.pack(c)[fh.IDX_KC:] == pytest.approx([0.01 * KL[1], 0.01 * KT_BELOW[1]], rel=1e-14)
+    assert fh.pack(c)[fh.PARAMS.compressive_k:] == pytest.approx([0.01 * KL[1], 0.01 * KT_BELOW[1]], rel=1e-14)
     i = card("interlock")  # representative: fibre tension 3-4 orders above transverse shear and compaction
     ratio = i.warp.coefficients[1] / i.transverse_shear_warp.K
     assert 1e3 <= ratio <= 1e4
@@ -489,7 +490,7 @@ def test_deck_overrides_preset_per_mode():
     o = 4 * fh.BLOCK
     assert over[o + 1] == 2.0
     changed = np.flatnonzero(base != over)
-    assert set(changed) == {o + 1, fh.IDX_RATIO, fh.IDX_KC, fh.IDX_KC + 1}
+    assert set(changed) == {o + 1, fh.PARAMS.compression_ratio, fh.PARAMS.compressive_k, fh.PARAMS.compressive_k + 1}
     assert card("3weave", density=2e-9).density == 2e-9
 
 
@@ -510,16 +511,16 @@ def test_card_errors():
 
 def test_new_preset_is_only_a_yaml_file(tmp_path, monkeypatch):
     # A third preset dropped in the preset folder is found, listed and used, with no code change.
-    for f in fh.PRESET_DIR.iterdir():
+    for f in fc.PRESET_DIR.iterdir():
         if f.name.endswith(".yaml"):
             (tmp_path / f.name).write_text(f.read_text())
     (tmp_path / "plain.yaml").write_text(
         "density: 1.0e-9\ncompression_ratio: 0.02\n"
         + "".join(f"{m}: {{form: quadratic, K: {k + 1}.0}}\n" for k, m in enumerate(MODE_NAMES)))
-    monkeypatch.setattr(fh, "PRESET_DIR", tmp_path)
-    assert "plain" in fh.available_presets()
+    monkeypatch.setattr(fc, "PRESET_DIR", tmp_path)
+    assert "plain" in fc.available_presets()
     c = card("plain")
-    assert c.in_plane_shear.K == 4.0 and fh.pack(c)[fh.IDX_KC] == pytest.approx(0.02 * 1.0)
+    assert c.in_plane_shear.K == 4.0 and fh.pack(c)[fh.PARAMS.compressive_k] == pytest.approx(0.02 * 1.0)
     (tmp_path / "bad.yaml").write_text("density: 1.0e-9\nyoungs_modulus: 3.0\n")
     with pytest.raises(ValidationError, match="youngs_modulus"):
         card("bad")

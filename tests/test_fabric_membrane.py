@@ -13,6 +13,7 @@ from pydantic import ValidationError
 
 import fdeck.physics  # noqa: F401  (registers plug-ins)
 import fdeck.physics.materials.fabric_membrane as fm
+WARP = (fm.PARAMS.warp_tension, fm.PARAMS.warp_compression)  # offsets of the warp curves in the packed vector
 
 from helpers import central_gradient, symmetric_central_gradient
 
@@ -197,18 +198,18 @@ def test_kinks_are_rounded_with_a_continuous_tangent():
     for k in range(1, len(x) - 1):
         d = fm.ROUND * min(x[k] - x[k - 1], x[k + 1] - x[k])
         for E in np.linspace(x[k] - d, x[k] + d, 11):
-            f, psi, tangent, _ = fm._fibre(p, fm.WARP_T, fm.WARP_C, E)
+            f, psi, tangent, _ = fm._fibre(p, *WARP, E)
             h = 1e-4 * d
-            fd = (fm._fibre(p, fm.WARP_T, fm.WARP_C, E + h)[0] - fm._fibre(p, fm.WARP_T, fm.WARP_C, E - h)[0]) / (2 * h)
+            fd = (fm._fibre(p, *WARP, E + h)[0] - fm._fibre(p, *WARP, E - h)[0]) / (2 * h)
             assert fd == pytest.approx(tangent, rel=1e-6)
             assert abs(f + shift - table(pts, E)) <= 0.25 * (slopes[k] - slopes[k - 1]) * d + 1e-12
-        assert fm._fibre(p, fm.WARP_T, fm.WARP_C, x[k] - d)[2] == pytest.approx(slopes[k - 1], rel=1e-9)
-        assert fm._fibre(p, fm.WARP_T, fm.WARP_C, x[k] + d)[2] == pytest.approx(slopes[k], rel=1e-9)
+        assert fm._fibre(p, *WARP, x[k] - d)[2] == pytest.approx(slopes[k - 1], rel=1e-9)
+        assert fm._fibre(p, *WARP, x[k] + d)[2] == pytest.approx(slopes[k], rel=1e-9)
     d = fm.JUNCTION
     kc = card.warp.compression[1][1] / card.warp.compression[1][0]
-    assert fm._fibre(p, fm.WARP_T, fm.WARP_C, -d)[2] == pytest.approx(kc, rel=1e-9)
-    assert fm._fibre(p, fm.WARP_T, fm.WARP_C, d)[2] == pytest.approx(slopes[0], rel=1e-9)
-    assert fm._fibre(p, fm.WARP_T, fm.WARP_C, 0.0)[:2] == (0.0, 0.0)
+    assert fm._fibre(p, *WARP, -d)[2] == pytest.approx(kc, rel=1e-9)
+    assert fm._fibre(p, *WARP, d)[2] == pytest.approx(slopes[0], rel=1e-9)
+    assert fm._fibre(p, *WARP, 0.0)[:2] == (0.0, 0.0)
 
 
 def central_differences(stress, dt, x0, x1, steps):
@@ -239,7 +240,7 @@ def test_a_sharp_tension_compression_switch_is_unstable_below_the_critical_step_
                              weft={"tension": [[0, 0], [0.01, 0.01]], "compression": [[0, 0], [-0.01, -0.01]]},
                              shear={"curve": [[0, 0], [30, 0.1]], "locking_angle": 60, "locking_modulus": 1.0})
     p = fm.pack(card)
-    rounded = lambda x: fm._fibre(p, fm.WARP_T, fm.WARP_C, x)[0]  # noqa: E731
+    rounded = lambda x: fm._fibre(p, *WARP, x)[0]  # noqa: E731
     start = 0.01 * fm.JUNCTION
     for _ in range(3):
         x0, x1 = start * rng.uniform(-1, 1, 2)
@@ -315,7 +316,7 @@ def test_ts_preset_compression_gives_the_sm_bending_stiffness():
     card = fm.FabricMembrane(type="fabric_membrane", preset="t300_3k_ts")
     Et = card.warp.tension[1][1] / card.warp.tension[1][0]
     Ec = card.warp.compression[1][1] / card.warp.compression[1][0]
-    from fdeck.physics.elements.shell4 import load_section_preset
+    from fdeck.cards.shell_sections import load_section_preset
 
     sm = load_section_preset("sm", "t300_3k")
     h = sm["thickness"]

@@ -16,9 +16,10 @@ import pytest
 
 import fdeck.physics  # noqa: F401  (registers plug-ins)
 from fdeck.compile.mesh import block
-from fdeck.physics.effects.fibre_bending import FibreBending, bending_law, build, pack_law
+from fdeck.cards.fibre_bending import FibreBending
+from fdeck.physics.effects.fibre_bending import bending_law, build, pack_law
 from fdeck.physics.elements.hex8 import Hex8Group
-from fdeck.registry import MATERIALS
+from fdeck.registry import CARDS, MATERIALS
 
 from helpers import central_gradient, digests_on_one_and_two_threads, run_data, stored_energy
 
@@ -33,7 +34,8 @@ TABLE = {"table": [[0.0, 0.0], [0.02, 0.2], [0.05, 0.35], [0.2, 0.6]]}
 def make(X, conn, laws, frame=WARP_X, thickness=2.0, E=10.0):
     """(Hex8Group, FibreBendingEffect) on one section; laws = {'warp': {...}, 'weft': {...}}."""
     kind = MATERIALS["neo_hookean"]
-    p = kind.pack(kind.card(type="neo_hookean", density=1e-9, youngs_modulus=E, poisson_ratio=0.3))
+    card = CARDS["material"]["neo_hookean"].card(type="neo_hookean", density=1e-9, youngs_modulus=E, poisson_ratio=0.3)
+    p = kind.pack(card)
     n = len(conn)
     g = Hex8Group("g", "fbar", X, conn, np.arange(1, n + 1), kind, np.broadcast_to(p, (n, len(p))),
                   np.ascontiguousarray(np.broadcast_to(frame, (n, 3, 3))), np.full(n, 1e-9), None)

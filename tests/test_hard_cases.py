@@ -96,6 +96,7 @@ def test_confined_compaction_towards_the_singular_thickness_stays_stable_and_exa
     assert h["dt"][-1] < h["dt"][1] / 100
 
 
+@pytest.mark.long
 @pytest.mark.parametrize("mass_factor", [1.0, 10.0])
 def test_three_point_bending_1mm_fbar_with_fibre_bending_to_40mm_stays_stable(mass_factor):
     """Requirement: the 1 mm interlock three-point bending with F-bar + fibre bending runs to 40 mm of deflection

@@ -6,7 +6,7 @@ import pytest
 
 from helpers import DECKS
 
-pytestmark = pytest.mark.regression
+pytestmark = [pytest.mark.regression, pytest.mark.long]
 CASES = sorted(p for p in (DECKS / "regression").iterdir() if (p / "spec.yaml").exists())
 
 

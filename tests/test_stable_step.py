@@ -15,7 +15,7 @@ import pytest
 import fdeck.physics  # noqa: F401  (registers plug-ins)
 from fdeck.compile.mesh import block
 from fdeck.physics.elements.hex8 import Hex8Group
-from fdeck.registry import MATERIALS
+from fdeck.registry import CARDS as REGISTERED, MATERIALS
 
 pytestmark = pytest.mark.verification
 
@@ -30,7 +30,7 @@ def make(form, mat, size, divisions, warp_angle=0.0, distort=0.0):
     m = block((0, 0, 0), size, divisions)
     X = m.X + distort * np.random.default_rng(0).uniform(-1, 1, m.X.shape) * np.divide(size, divisions)
     kind = MATERIALS[CARDS[mat]["type"]]
-    card = kind.card(**CARDS[mat])
+    card = REGISTERED["material"][CARDS[mat]["type"]].card(**CARDS[mat])
     p, conn = kind.pack(card), m.cells["hexahedron"]
     n = len(conn)
     a = np.radians(warp_angle)

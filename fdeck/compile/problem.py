@@ -15,6 +15,8 @@ from fdeck.compile.orientation import element_orientation
 from fdeck.deck.errors import unknown_name
 from fdeck.deck.model import Deck
 
+registry.load_plugins()  # the kernel side of every plug-in (the deck loaded only their cards)
+
 
 @dataclass
 class StepPlan:
@@ -123,7 +125,8 @@ def build_groups(deck: Deck, mesh: MeshArrays) -> list:
             continue
         kind = registry.MATERIALS[deck.materials[sec.material].type]
         card = deck.materials[sec.material]
-        form = registry.FORMULATIONS[sec.formulation]
+        form = registry.CARDS["formulation"][sec.formulation]
+        build = registry.FORMULATIONS[sec.formulation].build
         if sec.orientation.field is not None and sec.orientation.field not in mesh.cell_data:
             message = unknown_name("cell field", sec.orientation.field, mesh.cell_data)
             if not deck.mesh.file:
@@ -157,7 +160,7 @@ def build_groups(deck: Deck, mesh: MeshArrays) -> list:
                 continue
             rho = np.full(len(idx), card.density)
             try:
-                g = form.build(f"section{i}:{sec.elements}", sec, mesh.X, conn, ids, kind, params, orient, rho, ctype)
+                g = build(f"section{i}:{sec.elements}", sec, mesh.X, conn, ids, kind, params, orient, rho, ctype)
             except CompileError as exc:  # the element reports its own problems relative to the section
                 problems += [(path + tuple(p), m) for p, m in exc.problems]
                 continue
@@ -308,10 +311,9 @@ def compile_deck(deck: Deck, base: Path = Path(".")) -> Problem:
         for i, card in enumerate(getattr(deck, section)):
             ctx.path = (section, i)
             _build(registry.EFFECTS[card.type], card, ctx, problems, effects)
-    for name, kind in registry.EFFECTS.items():  # step settings (damping, bulk viscosity), built when a step asks
-        if kind.section == "step":
-            ctx.path = ("steps",)
-            _build(kind, [getattr(s, name) for s in deck.steps], ctx, problems, effects)
+    for name in registry.cards("effect", "step"):  # step settings (damping, bulk viscosity), built when a step asks
+        ctx.path = ("steps",)
+        _build(registry.EFFECTS[name], [getattr(s, name) for s in deck.steps], ctx, problems, effects)
     reactions = {}
     for i, name in enumerate(deck.output.reactions):
         ctx.path = ("output", "reactions", i)

@@ -1,8 +1,9 @@
 """The deck: every section of a YAML input as a frozen pydantic model.
 
-Material, boundary and load cards come from the registry (``fdeck.registry``), so a new card is a new module, not an
-edit here. Values are canonical after validation (SI-consistent numbers in the declared unit system, defaults
-filled in); cross references by name are checked in ``Deck``'s validator, mesh set names in the compiler.
+Material, boundary, load, measure and section cards come from the card tables of the registry (``fdeck.registry``,
+filled by ``fdeck.cards``, which imports neither numpy nor numba), so a new card is a new module, not an edit here.
+Values are canonical after validation (SI-consistent numbers in the declared unit system, defaults filled in); cross
+references by name are checked in ``Deck``'s validator, mesh set names in the compiler.
 """
 
 from __future__ import annotations
@@ -15,29 +16,27 @@ from pydantic import Discriminator, Field, Tag, model_validator
 from fdeck import registry
 from fdeck.deck.base import Card
 from fdeck.deck.errors import unknown_name
+from fdeck.cards.steps import BulkViscosity, Damping
 from fdeck.deck.section import SectionBase
-from fdeck.deck.steps import BulkViscosity, Damping
-
-registry.load_plugins()
 
 Vector = tuple[float, float, float]
 PositiveInt = Annotated[int, Field(ge=1)]
 
 
-def _union(section: str | None, table: dict):
-    cards = tuple(k.card for k in table.values() if section is None or k.section == section)
+def _union(table: str, section: str | None = None):
+    cards = tuple(k.card for k in registry.cards(table, section).values())
     if len(cards) == 1:
         return cards[0]
     return Annotated[Union[cards], Field(discriminator="type")]
 
 
-MaterialCardU = _union(None, registry.MATERIALS)
-BoundaryCard = _union("boundary", registry.EFFECTS)
-LoadCard = _union("loads", registry.EFFECTS)
-_section_effects = [k for k in registry.EFFECTS.values() if k.section == "section"]
-SectionEffectCard = _union("section", registry.EFFECTS) if _section_effects else None
-MeasureCard = _union(None, registry.MEASURES)
-SOLID_FORMULATIONS = tuple(k for k, v in registry.FORMULATIONS.items() if v.card is None)
+FORMULATIONS = registry.cards("formulation")
+MaterialCardU = _union("material")
+BoundaryCard = _union("effect", "boundary")
+LoadCard = _union("effect", "loads")
+SectionEffectCard = _union("effect", "section") if registry.cards("effect", "section") else None
+MeasureCard = _union("measure")
+SOLID_FORMULATIONS = tuple(k for k, v in FORMULATIONS.items() if v.card is None)
 Formulation = Literal[SOLID_FORMULATIONS]  # type: ignore[valid-type]
 
 
@@ -113,7 +112,7 @@ class Section(SectionBase):
     """A solid section: assigns a material and a hexahedral formulation to an element set."""
 
     formulation: Formulation = Field("fbar", description="Element formulation: "  # type: ignore[valid-type]
-                                     + "; ".join(f"{k}: {v.description}" for k, v in registry.FORMULATIONS.items()
+                                     + "; ".join(f"{k}: {v.description}" for k, v in FORMULATIONS.items()
                                                  if v.card is None))
     hourglass: Hourglass | None = Field(None, description="Hourglass control (reduced only; default stiffness 0.05).")
     if SectionEffectCard is not None:
@@ -135,7 +134,7 @@ def formulation(value) -> str | None:
 
 
 SectionCard = Annotated[
-    Union[tuple(Annotated[k.card or Section, Tag(name)] for name, k in registry.FORMULATIONS.items())],
+    Union[tuple(Annotated[k.card or Section, Tag(name)] for name, k in FORMULATIONS.items())],
     Discriminator(formulation)]
 
 
@@ -313,8 +312,8 @@ def cross_reference_problems(deck: Deck) -> list[tuple[tuple, str, str]]:
     for name in deck.materials:
         if name not in used:
             out.append((("materials", name), f"material '{name}' is not used by any section", "warning"))
-    solids = any("hexahedron" in registry.FORMULATIONS[s.formulation].cell_types for s in deck.sections
-                 if s.formulation in registry.FORMULATIONS)
+    solids = any("hexahedron" in FORMULATIONS[s.formulation].cell_types for s in deck.sections
+                 if s.formulation in FORMULATIONS)
     for i, st in enumerate(deck.steps):
         if st.bulk_viscosity is not None and not solids:
             out.append((("steps", i, "bulk_viscosity"), "bulk viscosity acts on hexahedra only and no section has "

@@ -26,7 +26,6 @@ import math
 
 import numpy as np
 
-from fdeck.deck.steps import BulkViscosity as BulkViscosityCard
 from fdeck.engine.effect import Effect
 from fdeck.engine.gather import gather_add
 from fdeck.jit import njit_parallel, prange
@@ -128,4 +127,4 @@ def build(cards: list, ctx) -> BulkViscosity | None:
     return BulkViscosity(solids, coeffs)
 
 
-register_effect(EffectKind("bulk_viscosity", BulkViscosityCard, build, "step"))
+register_effect(EffectKind("bulk_viscosity", build))

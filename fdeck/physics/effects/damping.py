@@ -8,7 +8,6 @@ A step setting (``steps[i].damping``): built only when some step asks for it.
 
 from __future__ import annotations
 
-from fdeck.deck.steps import Damping
 from fdeck.engine.effect import Effect
 from fdeck.registry import EffectKind, register_effect
 
@@ -45,4 +44,4 @@ def build(cards: list, ctx) -> MassDamping | None:
     return MassDamping(alphas, rotational=ctx.rotations is not None)
 
 
-register_effect(EffectKind("damping", Damping, build, "step"))
+register_effect(EffectKind("damping", build))

@@ -2,36 +2,17 @@
 
 from __future__ import annotations
 
-from typing import Literal
 
 import numpy as np
-from pydantic import Field
 
 from fdeck.compile.errors import CompileError
-from fdeck.deck.base import Card
 from fdeck.engine.effect import Effect
 from fdeck.registry import EffectKind, register_effect
 
-Vector = tuple[float, float, float]
 
 
-class Gravity(Card):
-    """Uniform acceleration field on every node [mm/s^2]; 9810 mm/s^2 is standard gravity in mm-t-s."""
-
-    type: Literal["gravity"]
-    acceleration: Vector = Field(description="Acceleration vector [mm/s^2], e.g. [0, 0, -9810].")
-    amplitude: str = Field("constant", description="Amplitude name (see boundary `displacement`).")
 
 
-class NodalForce(Card):
-    """Concentrated forces on the nodes of a set [N]."""
-
-    type: Literal["nodal_force"]
-    nodes: str = Field(description="Node set name.")
-    force: Vector = Field(description="Force vector [N].")
-    distribution: Literal["per_node", "total"] = Field(
-        "per_node", description="per_node: every node gets `force`; total: `force` is split equally over the set.")
-    amplitude: str = Field("smooth", description="Amplitude name (see boundary `displacement`).")
 
 
 class BodyForce(Effect):
@@ -58,17 +39,6 @@ def build_nodal_force(card, ctx):
                      ctx.amplitude(card.amplitude))
 
 
-class NodalMoment(Card):
-    """Concentrated moments on the shell nodes of a set [N mm], fixed in direction (not following the rotation).
-    Only the part normal to each node's current director acts: a shell node has no drilling stiffness, so a
-    component about the director could only spin it (it does no work on the director)."""
-
-    type: Literal["nodal_moment"]
-    nodes: str = Field(description="Node set name (its nodes with rotations, i.e. shell nodes, are loaded).")
-    moment: Vector = Field(description="Moment vector [N mm] about the global axes.")
-    distribution: Literal["per_node", "total"] = Field(
-        "per_node", description="per_node: every node gets `moment`; total: `moment` is split equally over the set.")
-    amplitude: str = Field("smooth", description="Amplitude name (see boundary `displacement`).")
 
 
 class Moment(Effect):
@@ -103,6 +73,6 @@ def build_nodal_moment(card, ctx):
                   ctx.amplitude(card.amplitude))
 
 
-register_effect(EffectKind("gravity", Gravity, build_gravity, "loads"))
-register_effect(EffectKind("nodal_force", NodalForce, build_nodal_force, "loads"))
-register_effect(EffectKind("nodal_moment", NodalMoment, build_nodal_moment, "loads"))
+register_effect(EffectKind("gravity", build_gravity))
+register_effect(EffectKind("nodal_force", build_nodal_force))
+register_effect(EffectKind("nodal_moment", build_nodal_moment))

@@ -5,34 +5,30 @@ law for small strains. Meant for verification decks (patch tests, waves, beams),
 Saint Venant-Kirchhoff softens.
 """
 
-from typing import Literal
 
 import numpy as np
-from pydantic import Field
 
-from fdeck.deck.base import MaterialCard
 from fdeck.jit import njit, njit_parallel, prange
+from fdeck.physics.layout import layout
 from fdeck.physics.tensor import sym_bound6
 from fdeck.registry import MaterialKind, register_material
+from fdeck.cards.elastic import Isotropic
 
 
-class Isotropic(MaterialCard):
-    """Fields of an isotropic law given by its (small-strain) Young's modulus and Poisson ratio."""
-
-    youngs_modulus: float = Field(gt=0.0, description="Young's modulus E [MPa] (small-strain for hyperelastic laws).")
-    poisson_ratio: float = Field(gt=-1.0, lt=0.5, description="Poisson ratio nu, -1 < nu < 0.5.")
 
 
-class LinearElastic(Isotropic):
-    """Isotropic linear elastic (Saint Venant-Kirchhoff at finite strain)."""
 
-    type: Literal["linear_elastic"]
+
+PARAMS = layout(lam=1, mu=1)
+"""Packed parameters of the isotropic laws: the Lame constants lam, mu [MPa]."""
 
 
 def pack(card: Isotropic) -> np.ndarray:
-    """-> [lam, mu] Lame constants [MPa] of any isotropic card."""
+    """-> (PARAMS.size,) Lame constants [MPa] of any isotropic card."""
     e, nu = card.youngs_modulus, card.poisson_ratio
-    return np.array([e * nu / ((1 + nu) * (1 - 2 * nu)), e / (2 * (1 + nu))])
+    p = np.empty(PARAMS.size)
+    p[PARAMS.lam], p[PARAMS.mu] = e * nu / ((1 + nu) * (1 - 2 * nu)), e / (2 * (1 + nu))
+    return p
 
 
 @njit
@@ -43,7 +39,7 @@ def point(F, frame, params, state, P):
     Written with scalars: no allocation per point (allocations dominate the cost of small kernels and contend
     between threads).
     """
-    lam, mu = params[0], params[1]
+    lam, mu = params[PARAMS.lam], params[PARAMS.mu]
     # Green-Lagrange strain E = (F^T F - I) / 2, symmetric: 6 components
     e00 = 0.5 * (F[0, 0] * F[0, 0] + F[1, 0] * F[1, 0] + F[2, 0] * F[2, 0] - 1.0)
     e11 = 0.5 * (F[0, 1] * F[0, 1] + F[1, 1] * F[1, 1] + F[2, 1] * F[2, 1] - 1.0)
@@ -75,4 +71,4 @@ def evaluate(F, frame, params, state, P, psi, modulus):
                 F[e, q], frame[e], params[e], state[e, q], P[e, q])
 
 
-register_material(MaterialKind("linear_elastic", LinearElastic, pack, evaluate, point))
+register_material(MaterialKind("linear_elastic", pack, evaluate, point))

@@ -63,32 +63,25 @@ numbers come from.
 from __future__ import annotations
 
 import math
-from importlib import resources
-from typing import Annotated, Literal
 
 import numba
 import numpy as np
-from pydantic import Field, FiniteFloat, model_validator
 
-from fdeck.deck.base import Card, MaterialCard
 from fdeck.jit import FLAGS, njit, njit_parallel, prange
-from fdeck.physics import presets
+from fdeck.physics.layout import layout
 from fdeck.physics.tensor import push
 from fdeck.registry import MaterialKind, register_material
+from fdeck.cards.fabric_membrane import MAX_POINTS, FabricMembrane
 
-MAX_POINTS = 16
-"""Largest number of points of one load curve (fixes the parameter block size)."""
 
 CURVE = 1 + 5 * MAX_POINTS
 """A packed curve: [n, x_0..x_15, y_0..y_15, energy at x_0..x_15, rounding half-width at x_0..x_15, energy shift
 of the rounding accumulated up to and including x_0..x_15] (see ``_curve``)."""
 
-WARP_T, WARP_C, WEFT_T, WEFT_C = 0, CURVE, 2 * CURVE, 3 * CURVE
-SHEAR = 4 * CURVE
-"""Shear block: the tau(gamma) curve in radians, then gamma_lock, tau_lock, Phi_lock, G_lock."""
-FLOOR = SHEAR + CURVE + 4
-"""params[FLOOR + i]: tensile tangent at rest of family i (the stable-step floor)."""
-N_PARAM = FLOOR + 2
+PARAMS = layout(warp_tension=CURVE, warp_compression=CURVE, weft_tension=CURVE, weft_compression=CURVE, shear=CURVE,
+                locking=4, floor=2)
+"""The packed parameters: four fibre curves, the tau(gamma) shear curve in radians, the locking data (gamma_lock,
+tau_lock, Phi_lock, G_lock) and, at ``floor + i``, the tensile tangent at rest of family i (the stable-step floor)."""
 
 _inline = numba.njit(inline="always", **FLAGS)
 
@@ -101,90 +94,21 @@ ROUND = 0.05
 NEAR = 0.1
 """Fraction of a curve segment, at each end, within which the stable step also takes the neighbouring slope."""
 
-PRESET_DIR = resources.files(__package__).joinpath("presets", "fabric_membrane")
-"""Folder of this card's preset files (a module attribute so tests can point it elsewhere)."""
 
-Point = tuple[FiniteFloat, FiniteFloat]
 
 
 # ----------------------------------------------------------------------------------------------------------------
 # Card
 # ----------------------------------------------------------------------------------------------------------------
 
-class FibreCurves(Card):
-    """Stress-strain load curves of one fibre family: second Piola-Kirchhoff stress [MPa] against Green-Lagrange
-    strain [-], piecewise linear, continued with the last slope beyond the last point."""
-
-    tension: list[Point] = Field(min_length=2, max_length=MAX_POINTS, description=(
-        "Points (E >= 0 [-], S [MPa]) from (0, 0), E strictly increasing; the first slope must be > 0."))
-    compression: list[Point] = Field(min_length=2, max_length=MAX_POINTS, description=(
-        "Points (E <= 0 [-], S [MPa]) from (0, 0), E strictly decreasing (S usually <= 0)."))
-
-    @model_validator(mode="after")
-    def _check(self):
-        for name, pts, sign in (("tension", self.tension, 1.0), ("compression", self.compression, -1.0)):
-            if tuple(pts[0]) != (0.0, 0.0):
-                raise ValueError(f"{name}: the first point must be (0, 0) (stress-free at rest)")
-            e = [sign * p[0] for p in pts]
-            if any(b <= a for a, b in zip(e, e[1:])):
-                raise ValueError(f"{name}: strains must {'increase' if sign > 0 else 'decrease'} strictly from 0")
-        if self.tension[1][1] <= 0.0:
-            raise ValueError("tension: the first segment's slope must be > 0 (it sets the stable step at rest)")
-        return self
 
 
-class ShearCurve(Card):
-    """In-plane shear: tau = dPhi/dgamma [MPa] (per reference volume) against the shear angle between the fibres."""
-
-    curve: list[Point] = Field(min_length=2, max_length=MAX_POINTS, description=(
-        "Points (gamma [deg], tau [MPa]) from (0, 0), gamma strictly increasing; odd in gamma."))
-    locking_angle: float = Field(gt=0.0, lt=90.0, description=(
-        "Locking angle [deg]; beyond it tau grows with `locking_modulus` from its value at the locking angle."))
-    locking_modulus: float = Field(ge=0.0, description="Slope dtau/dgamma beyond the locking angle [MPa/rad].")
-
-    @model_validator(mode="after")
-    def _check(self):
-        if tuple(self.curve[0]) != (0.0, 0.0):
-            raise ValueError("curve: the first point must be (0, 0)")
-        g = [p[0] for p in self.curve]
-        if any(b <= a for a, b in zip(g, g[1:])):
-            raise ValueError("curve: angles must increase strictly")
-        return self
 
 
-def available_presets() -> list[str]:
-    return presets.names(PRESET_DIR)
 
 
-def load_preset(name: str) -> dict:
-    return presets.load(PRESET_DIR, name, {"density", "warp", "weft", "shear"}, "fabric_membrane")
 
 
-class FabricMembrane(MaterialCard):
-    """Fabric in-plane law (MAT 249 style, hyperelastic) for shell and membrane sections: warp and weft load curves
-    (tension and compression apart), shear stress against shear angle with a locking angle and a post-locking
-    modulus. Plane stress: no through-thickness energy. ``preset: t300_3k`` (and ``t300_3k_ts`` for the thick
-    shell) gives REPRESENTATIVE curves of a plain-weave carbon T300-3K; deck keys replace the preset's."""
-
-    type: Literal["fabric_membrane"]
-    density: Annotated[float, Field(gt=0.0)] | None = Field(
-        None, description="Mass density [t/mm^3]; taken from the preset when omitted.")
-    preset: str | None = Field(None, description="Name of a file in fdeck/physics/materials/presets/fabric_membrane.")
-    warp: FibreCurves | None = Field(None, description="Load curves of the warp family (frame row 0).")
-    weft: FibreCurves | None = Field(None, description="Load curves of the weft family (frame row 1).")
-    shear: ShearCurve | None = Field(None, description="In-plane shear curve, locking angle and modulus.")
-
-    @model_validator(mode="before")
-    @classmethod
-    def _merge_preset(cls, data):
-        return presets.merged(data, load_preset)
-
-    @model_validator(mode="after")
-    def _complete(self):
-        missing = [k for k in ("density", "warp", "weft", "shear") if getattr(self, k) is None]
-        if missing:
-            raise ValueError(f"fabric_membrane: {', '.join(missing)} not defined by the deck or a preset")
-        return self
 
 
 # ----------------------------------------------------------------------------------------------------------------
@@ -211,19 +135,19 @@ def _pack_curve(p: np.ndarray, o: int, pts, rounded: bool = True) -> None:
 
 
 def pack(card: FabricMembrane) -> np.ndarray:
-    """-> (N_PARAM,): four fibre curves, the shear curve in radians with the locking data, the stable-step floors."""
-    p = np.zeros(N_PARAM)
-    _pack_curve(p, WARP_T, card.warp.tension)
-    _pack_curve(p, WARP_C, card.warp.compression)
-    _pack_curve(p, WEFT_T, card.weft.tension)
-    _pack_curve(p, WEFT_C, card.weft.compression)
+    """-> (PARAMS.size,): four fibre curves, the shear curve in radians with its locking data, the step floors."""
+    p = np.zeros(PARAMS.size)
+    _pack_curve(p, PARAMS.warp_tension, card.warp.tension)
+    _pack_curve(p, PARAMS.warp_compression, card.warp.compression)
+    _pack_curve(p, PARAMS.weft_tension, card.weft.tension)
+    _pack_curve(p, PARAMS.weft_compression, card.weft.compression)
     sh = card.shear
-    _pack_curve(p, SHEAR, [(math.radians(g), t) for g, t in sh.curve], rounded=False)
+    _pack_curve(p, PARAMS.shear, [(math.radians(g), t) for g, t in sh.curve], rounded=False)
     g_lock = math.radians(sh.locking_angle)
-    tau, phi, _, _ = _curve(p, SHEAR, g_lock)
-    p[SHEAR + CURVE:SHEAR + CURVE + 4] = [g_lock, tau, phi, sh.locking_modulus]
+    tau, phi, _, _ = _curve(p, PARAMS.shear, g_lock)
+    p[PARAMS.locking:PARAMS.locking + 4] = [g_lock, tau, phi, sh.locking_modulus]
     for i, c in enumerate((card.warp.tension, card.weft.tension)):
-        p[FLOOR + i] = c[1][1] / c[1][0]
+        p[PARAMS.floor + i] = c[1][1] / c[1][0]
     return p
 
 
@@ -323,9 +247,9 @@ def _shear(p, g):
     locking modulus; odd tau, even Phi. The step slope includes the locking modulus within NEAR of the locking
     angle (the lock is the stiffest kink a shear wave meets)."""
     a = abs(g)
-    o = SHEAR + CURVE
+    o = PARAMS.locking
     if a <= p[o]:
-        tau, phi, k, step = _curve(p, SHEAR, a)
+        tau, phi, k, step = _curve(p, PARAMS.shear, a)
         if a > (1.0 - NEAR) * p[o]:
             step = max(step, p[o + 3])
     else:
@@ -361,8 +285,8 @@ def point(F, frame, params, state, P):
     beta_2^2/I_2) and |d2gamma| <= ((2/sqrt 3) max(1/I_i) + 1/sqrt(I_1 I_2)) / c + |s| (1 + |s|) max(1/I_i) / c^2.
     """
     a1, a2, i1, i2, i12, s, c, g = _kinematics(F, frame)
-    f1, p1, _, k1 = _fibre(params, WARP_T, WARP_C, 0.5 * (i1 - 1.0))
-    f2, p2, _, k2 = _fibre(params, WEFT_T, WEFT_C, 0.5 * (i2 - 1.0))
+    f1, p1, _, k1 = _fibre(params, PARAMS.warp_tension, PARAMS.warp_compression, 0.5 * (i1 - 1.0))
+    f2, p2, _, k2 = _fibre(params, PARAMS.weft_tension, PARAMS.weft_compression, 0.5 * (i2 - 1.0))
     tau, phi, _, kt = _shear(params, g)
     r = 1.0 / math.sqrt(i1 * i2)
     t = tau / c  # dPhi/ds
@@ -378,8 +302,8 @@ def point(F, frame, params, state, P):
     inv_max = max(1.0 / i1, 1.0 / i2)
     kk = max(kt, 0.0) * (1.0 + abs(s))
     second = abs(tau) * ((1.1547005383792517 * inv_max + r) / c + abs(s) * (1.0 + abs(s)) * inv_max / (c * c))
-    m1 = max(max(k1, 0.0) * i1 + abs(f1) + kk / i1 + second, params[FLOOR])
-    m2 = max(max(k2, 0.0) * i2 + abs(f2) + kk / i2 + second, params[FLOOR + 1])
+    m1 = max(max(k1, 0.0) * i1 + abs(f1) + kk / i1 + second, params[PARAMS.floor])
+    m2 = max(max(k2, 0.0) * i2 + abs(f2) + kk / i2 + second, params[PARAMS.floor + 1])
     return p1 + p2 + phi, m1, m2, second
 
 
@@ -401,8 +325,8 @@ def diagnose(F, frame, params):
     """-> (15,) in DIAGNOSTICS order: shear angle [deg], Green-Lagrange fibre strains [-], current unit fibre
     directions, energies [MPa], fibre stresses f_i [MPa] and tau [MPa]."""
     a1, a2, i1, i2, i12, s, c, g = _kinematics(F, frame)
-    f1, p1, _, _ = _fibre(params, WARP_T, WARP_C, 0.5 * (i1 - 1.0))
-    f2, p2, _, _ = _fibre(params, WEFT_T, WEFT_C, 0.5 * (i2 - 1.0))
+    f1, p1, _, _ = _fibre(params, PARAMS.warp_tension, PARAMS.warp_compression, 0.5 * (i1 - 1.0))
+    f2, p2, _, _ = _fibre(params, PARAMS.weft_tension, PARAMS.weft_compression, 0.5 * (i2 - 1.0))
     tau, phi, _, _ = _shear(params, g)
     out = np.empty(len(DIAGNOSTICS))
     out[0], out[1], out[2] = math.degrees(g), 0.5 * (i1 - 1.0), 0.5 * (i2 - 1.0)
@@ -414,5 +338,5 @@ def diagnose(F, frame, params):
     return out
 
 
-register_material(MaterialKind("fabric_membrane", FabricMembrane, pack, evaluate, point, 0, DIAGNOSTICS, diagnose,
+register_material(MaterialKind("fabric_membrane", pack, evaluate, point, 0, DIAGNOSTICS, diagnose,
                                plane_stress=True))

@@ -4,20 +4,15 @@ S = mu (I - C^-1) + lam ln J C^-1. Polyconvex and well defined for any J > 0; us
 kinematics (F-bar, objectivity, compression) independently of the fabric laws.
 """
 
-from typing import Literal
 
 import numpy as np
 
 from fdeck.jit import njit, njit_parallel, prange
-from fdeck.physics.materials.elastic import Isotropic, pack
+from fdeck.physics.materials.elastic import PARAMS, pack
 from fdeck.physics.tensor import sym_bound6
 from fdeck.registry import MaterialKind, register_material
 
 
-class NeoHookean(Isotropic):
-    """Compressible neo-Hookean hyperelastic solid."""
-
-    type: Literal["neo_hookean"]
 
 
 @njit
@@ -27,7 +22,7 @@ def point(F, frame, params, state, P):
 
     P = mu F + (lam ln J - mu) F^-T, with F^-T = cof(F) / J built in place in P (no allocation per point).
     """
-    lam, mu = params[0], params[1]
+    lam, mu = params[PARAMS.lam], params[PARAMS.mu]
     # cofactor matrix of F, written into P
     P[0, 0] = F[1, 1] * F[2, 2] - F[1, 2] * F[2, 1]
     P[0, 1] = F[1, 2] * F[2, 0] - F[1, 0] * F[2, 2]
@@ -70,4 +65,4 @@ def evaluate(F, frame, params, state, P, psi, modulus):
                 F[e, q], frame[e], params[e], state[e, q], P[e, q])
 
 
-register_material(MaterialKind("neo_hookean", NeoHookean, pack, evaluate, point))
+register_material(MaterialKind("neo_hookean", pack, evaluate, point))

@@ -2,24 +2,13 @@
 
 from __future__ import annotations
 
-from typing import Literal
 
 import numpy as np
-from pydantic import Field
 
 from fdeck.compile.errors import CompileError
-from fdeck.deck.base import Card
 from fdeck.registry import MeasureKind, register_measure
 
 
-class ElementAverage(Card):
-    """Average of a cell output field (e.g. shear_angle, warp_strain, J) over the elements of a set."""
-
-    type: Literal["element_average"]
-    name: str = Field(description="Column name in history.csv and key in summary.json.")
-    elements: str = Field(description="Element set name.")
-    field: str = Field(description="Name of a cell output field of the set's sections (see the materials' docs).")
-    reduce: Literal["mean", "min", "max"] = "mean"
 
 
 class Measure:
@@ -62,4 +51,4 @@ def build(card, ctx):
     return Measure(card, parts)
 
 
-register_measure(MeasureKind("element_average", ElementAverage, build))
+register_measure(MeasureKind("element_average", build))

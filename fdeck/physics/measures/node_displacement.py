@@ -2,23 +2,12 @@
 
 from __future__ import annotations
 
-from typing import Literal
 
 import numpy as np
-from pydantic import Field
 
-from fdeck.deck.base import Card
 from fdeck.registry import MeasureKind, register_measure
 
 
-class NodeDisplacement(Card):
-    """A component of the displacement [mm] of a node set, reduced to one number."""
-
-    type: Literal["node_displacement"]
-    name: str = Field(description="Column name in history.csv and key in summary.json.")
-    nodes: str = Field(description="Node set name.")
-    component: Literal["x", "y", "z", "magnitude"] = "z"
-    reduce: Literal["mean", "min", "max"] = "mean"
 
 
 class Measure:
@@ -38,4 +27,4 @@ def build(card, ctx):
     return Measure(card, ctx.node_set(card.nodes), ctx.X)
 
 
-register_measure(MeasureKind("node_displacement", NodeDisplacement, build))
+register_measure(MeasureKind("node_displacement", build))

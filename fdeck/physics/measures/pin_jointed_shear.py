@@ -8,30 +8,12 @@ summary show theory and simulation side by side.
 from __future__ import annotations
 
 import math
-from typing import Literal
 
 import numpy as np
-from pydantic import Field, model_validator
 
-from fdeck.deck.base import Card
 from fdeck.registry import MeasureKind, register_measure
 
 
-class PinJointedShear(Card):
-    """Kinematic (pin-jointed net) central shear angle [deg] of a bias-extension sample."""
-
-    type: Literal["pin_jointed_shear"]
-    name: str = Field(description="Column name in history.csv and key in summary.json.")
-    clamp: str = Field(description="Node set of the moving clamp.")
-    axis: Literal["x", "y", "z"] = Field("y", description="Pull direction.")
-    width: float = Field(gt=0, description="Sample width W [mm].")
-    free_length: float = Field(gt=0, description="Free length H between the clamps [mm] (H >= 2 W).")
-
-    @model_validator(mode="after")
-    def _long_enough(self):
-        if self.free_length < 2 * self.width:
-            raise ValueError("a bias-extension sample needs free_length >= 2 width")
-        return self
 
 
 def shear_angle(d: float, W: float, H: float) -> float:
@@ -56,4 +38,4 @@ def build(card, ctx):
     return Measure(card, ctx.node_set(card.clamp), ctx.X)
 
 
-register_measure(MeasureKind("pin_jointed_shear", PinJointedShear, build))
+register_measure(MeasureKind("pin_jointed_shear", build))

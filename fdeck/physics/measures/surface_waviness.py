@@ -11,24 +11,13 @@ This makes the indicator comparable between a 3 mm and a 1 mm mesh, unlike secon
 
 from __future__ import annotations
 
-from typing import Literal
 
 import numpy as np
-from pydantic import Field
 
 from fdeck.compile.errors import CompileError
-from fdeck.deck.base import Card
 from fdeck.registry import MeasureKind, register_measure
 
 
-class SurfaceWaviness(Card):
-    """Largest short-wave deviation [mm] of a surface from a locally quadratic shape."""
-
-    type: Literal["surface_waviness"]
-    name: str = Field(description="Column name in history.csv and key in summary.json.")
-    nodes: str = Field(description="Node set of the surface (e.g. zmax of a block).")
-    along: Literal["x", "y", "z"] = Field("x", description="Direction of the lines (e.g. the beam length).")
-    height: Literal["x", "y", "z"] = Field("z", description="Component measured (e.g. the deflection direction).")
 
 
 def windows(X: np.ndarray, nodes: np.ndarray, along: int, height: int) -> tuple[np.ndarray, np.ndarray]:
@@ -71,4 +60,4 @@ def build(card, ctx):
     return Measure(card, win, s)
 
 
-register_measure(MeasureKind("surface_waviness", SurfaceWaviness, build))
+register_measure(MeasureKind("surface_waviness", build))

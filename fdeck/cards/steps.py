@@ -5,6 +5,7 @@ from __future__ import annotations
 from pydantic import Field
 
 from fdeck.deck.base import Card
+from fdeck.registry import CardEntry, register_card
 
 
 class Damping(Card):
@@ -18,3 +19,7 @@ class BulkViscosity(Card):
     linear: float = Field(0.06, ge=0, le=1, description="b1: fraction of critical damping of each element's "
                           "fastest mode [-].")
     quadratic: float = Field(1.2, ge=0, le=10, description="b2: quadratic coefficient, compression only [-].")
+
+
+register_card(CardEntry("damping", Damping, "effect", "step"))
+register_card(CardEntry("bulk_viscosity", BulkViscosity, "effect", "step"))
