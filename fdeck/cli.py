@@ -148,6 +148,13 @@ def info(deck: Path = typer.Argument(..., help="Deck file.")):
         raise typer.Exit(2)
     typer.echo(f"{deck}: {d.title}")
     typer.echo(f"  nodes {p.n_node}, elements {p.n_element}, duration {p.duration:.4g} s, units {d.units}")
+    from fdeck import registry
+
+    for name, card in d.materials.items():
+        entry = registry.CARDS["material"][card.type]
+        if entry.kind:  # a named card: say what it expands to
+            implies = f", implies section formulation {entry.formulation}" if entry.formulation else ""
+            typer.echo(f"  material {name}: {card.type} = {entry.kind} with preset {card.preset}{implies}")
     cycles, mem = 0, 0
     for plan, step in zip(p.steps, d.steps):
         alpha = step.damping.mass_proportional if step.damping else 0.0

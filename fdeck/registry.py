@@ -96,6 +96,12 @@ class CardEntry:
     description: one line for messages and the schema (formulations).
     cell_types: mesh cell types (meshio names) a formulation accepts.
     plane_stress: the formulation carries only plane-stress laws (``MaterialKind.plane_stress``).
+    kind: the kernel side this card runs on when it is a named preset of a general card (``3weave`` runs on
+        ``fabric_hyper``); empty for a general card (its own name).
+    preset: the preset a named card expands to.
+    formulation: the section formulation a named material card implies (``sm``, ``ts``), with ``section_preset``
+        the section preset it fills in when a section gives neither a preset nor a thickness.
+    aliases: other spellings that did-you-mean maps to this card (compared without case, spaces, - and _).
     """
 
     name: str
@@ -105,6 +111,16 @@ class CardEntry:
     description: str = ""
     cell_types: tuple[str, ...] = ("hexahedron",)
     plane_stress: bool = False
+    kind: str = ""
+    preset: str = ""
+    formulation: str = ""
+    section_preset: str = ""
+    aliases: tuple[str, ...] = ()
+
+    @property
+    def runs_on(self) -> str:
+        """Name of the kernel-side kind."""
+        return self.kind or self.name
 
 
 CARDS: dict[str, dict[str, CardEntry]] = {"material": {}, "effect": {}, "measure": {}, "formulation": {}}

@@ -11,7 +11,7 @@ from typing import Annotated, ClassVar, Literal, Union
 from pydantic import Field, FiniteFloat, model_validator
 
 from fdeck.cards import presets
-from fdeck.deck.base import Card, MaterialCard
+from fdeck.deck.base import Card
 from fdeck.registry import CardEntry, register_card
 
 
@@ -175,7 +175,7 @@ def _mode_field(what: str):
     return Field(None, description=f"Energy form of the {what} mode; overrides the preset's.")
 
 
-class FabricHyper(MaterialCard):
+class FabricHyper(presets.PresetMaterial):
     """Hyperelastic fabric for hexahedra: six invariants (MODELS section 1), one energy form per mode.
 
     ``preset: 3weave`` gives every published number of [P] (Tables 2 and 4). ``preset: interlock`` gives
@@ -186,6 +186,9 @@ class FabricHyper(MaterialCard):
     """
 
     type: Literal["fabric_hyper"]
+    preset_loader: ClassVar = staticmethod(lambda name: load_preset(name))
+    required: ClassVar = ("density", "compression_ratio", *MODES)
+    hint: ClassVar = " (give them, choose a preset, or use {form: none} for a mode without energy)"
     density: Annotated[float, Field(gt=0.0)] | None = Field(
         None, description="Mass density [t/mm^3]; taken from the preset when omitted.")
     preset: str | None = Field(None, description="Name of a parameter set in fdeck/cards/presets/fabric_hyper.")
@@ -199,16 +202,5 @@ class FabricHyper(MaterialCard):
         None, ge=0.0, description="Fibre compressive / tensile quadratic stiffness [-] ([P]: 0.01); from the preset "
         "when omitted.")
 
-    @model_validator(mode="before")
-    @classmethod
-    def _merge_preset(cls, data):
-        return presets.merged(data, load_preset)
 
-    @model_validator(mode="after")
-    def _complete(self):
-        missing = [k for k in ("density", "compression_ratio", *MODES) if getattr(self, k) is None]
-        if missing:
-            raise ValueError(f"fabric_hyper: {', '.join(missing)} not defined by the deck or a preset "
-                             "(give them, choose a preset, or use {form: none} for a mode without energy)")
-        return self
 register_card(CardEntry("fabric_hyper", FabricHyper, "material"))

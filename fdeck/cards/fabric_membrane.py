@@ -4,12 +4,12 @@ presets. Kernels and the packed layout in `fdeck.physics.materials.fabric_membra
 from __future__ import annotations
 
 from importlib import resources
-from typing import Annotated, Literal
+from typing import Annotated, ClassVar, Literal
 
 from pydantic import Field, FiniteFloat, model_validator
 
 from fdeck.cards import presets
-from fdeck.deck.base import Card, MaterialCard
+from fdeck.deck.base import Card
 from fdeck.registry import CardEntry, register_card
 
 
@@ -73,13 +73,15 @@ def load_preset(name: str) -> dict:
     return presets.load(PRESET_DIR, name, {"density", "warp", "weft", "shear"}, "fabric_membrane")
 
 
-class FabricMembrane(MaterialCard):
+class FabricMembrane(presets.PresetMaterial):
     """Fabric in-plane law (MAT 249 style, hyperelastic) for shell and membrane sections: warp and weft load curves
     (tension and compression apart), shear stress against shear angle with a locking angle and a post-locking
     modulus. Plane stress: no through-thickness energy. ``preset: t300_3k`` (and ``t300_3k_ts`` for the thick
     shell) gives REPRESENTATIVE curves of a plain-weave carbon T300-3K; deck keys replace the preset's."""
 
     type: Literal["fabric_membrane"]
+    preset_loader: ClassVar = staticmethod(lambda name: load_preset(name))
+    required: ClassVar = ("density", "warp", "weft", "shear")
     density: Annotated[float, Field(gt=0.0)] | None = Field(
         None, description="Mass density [t/mm^3]; taken from the preset when omitted.")
     preset: str | None = Field(None, description="Name of a file in fdeck/cards/presets/fabric_membrane.")
@@ -87,15 +89,5 @@ class FabricMembrane(MaterialCard):
     weft: FibreCurves | None = Field(None, description="Load curves of the weft family (frame row 1).")
     shear: ShearCurve | None = Field(None, description="In-plane shear curve, locking angle and modulus.")
 
-    @model_validator(mode="before")
-    @classmethod
-    def _merge_preset(cls, data):
-        return presets.merged(data, load_preset)
 
-    @model_validator(mode="after")
-    def _complete(self):
-        missing = [k for k in ("density", "warp", "weft", "shear") if getattr(self, k) is None]
-        if missing:
-            raise ValueError(f"fabric_membrane: {', '.join(missing)} not defined by the deck or a preset")
-        return self
 register_card(CardEntry("fabric_membrane", FabricMembrane, "material"))

@@ -21,28 +21,29 @@ class Gravity(Card):
     amplitude: str = Field("constant", description="Amplitude name (see boundary `displacement`).")
 
 
-class NodalForce(Card):
+class _Concentrated(Card):
+    """What the concentrated loads share: a node set, how the value is spread over it, and an amplitude."""
+
+    nodes: str = Field(description="Node set name.")
+    distribution: Literal["per_node", "total"] = Field(
+        "per_node", description="per_node: every node gets the value; total: the value is split equally over the set.")
+    amplitude: str = Field("smooth", description="Amplitude name (see boundary `displacement`).")
+
+
+class NodalForce(_Concentrated):
     """Concentrated forces on the nodes of a set [N]."""
 
     type: Literal["nodal_force"]
-    nodes: str = Field(description="Node set name.")
     force: Vector = Field(description="Force vector [N].")
-    distribution: Literal["per_node", "total"] = Field(
-        "per_node", description="per_node: every node gets `force`; total: `force` is split equally over the set.")
-    amplitude: str = Field("smooth", description="Amplitude name (see boundary `displacement`).")
 
 
-class NodalMoment(Card):
-    """Concentrated moments on the shell nodes of a set [N mm], fixed in direction (not following the rotation).
-    Only the part normal to each node's current director acts: a shell node has no drilling stiffness, so a
-    component about the director could only spin it (it does no work on the director)."""
+class NodalMoment(_Concentrated):
+    """Concentrated moments on the shell nodes of a set [N mm] (only its nodes with rotations are loaded), fixed in
+    direction (not following the rotation). Only the part normal to each node's current director acts: a shell node
+    has no drilling stiffness, so a component about the director could only spin it (it does no work on it)."""
 
     type: Literal["nodal_moment"]
-    nodes: str = Field(description="Node set name (its nodes with rotations, i.e. shell nodes, are loaded).")
     moment: Vector = Field(description="Moment vector [N mm] about the global axes.")
-    distribution: Literal["per_node", "total"] = Field(
-        "per_node", description="per_node: every node gets `moment`; total: `moment` is split equally over the set.")
-    amplitude: str = Field("smooth", description="Amplitude name (see boundary `displacement`).")
 
 
 for _card in (Gravity, NodalForce, NodalMoment):

@@ -6,7 +6,12 @@ and may override any of its keys. Adding a preset is adding a file: no code.
 
 from __future__ import annotations
 
+from typing import Callable, ClassVar
+
 import yaml
+from pydantic import model_validator
+
+from fdeck.deck.base import MaterialCard
 
 
 def names(folder) -> list[str]:
@@ -35,3 +40,28 @@ def merged(data, load_preset):
     out = load_preset(data["preset"])
     out.update({k: v for k, v in data.items() if v is not None})
     return out
+
+
+class PresetMaterial(MaterialCard):
+    """A material card whose fields a named preset may give: deck keys are laid over the preset (``merged``), then
+    every field of ``required`` must be known. ``default_preset`` is the preset a named card (``3weave``, ``sm``)
+    uses when the deck names none; ``hint`` ends the message for missing fields."""
+
+    preset_loader: ClassVar[Callable[[str], dict]]
+    required: ClassVar[tuple[str, ...]]
+    default_preset: ClassVar[str | None] = None
+    hint: ClassVar[str] = ""
+
+    @model_validator(mode="before")
+    @classmethod
+    def _merge_preset(cls, data):
+        if isinstance(data, dict) and cls.default_preset and data.get("preset") is None:
+            data = {**data, "preset": cls.default_preset}
+        return merged(data, cls.preset_loader)
+
+    @model_validator(mode="after")
+    def _complete(self):
+        missing = [k for k in self.required if getattr(self, k) is None]
+        if missing:
+            raise ValueError(f"{self.type}: {', '.join(missing)} not defined by the deck or a preset{self.hint}")
+        return self

@@ -123,7 +123,7 @@ def build_groups(deck: Deck, mesh: MeshArrays) -> list:
         if sec.elements not in mesh.element_sets:
             problems.append((path + ("elements",), unknown_name("element set", sec.elements, mesh.element_sets)))
             continue
-        kind = registry.MATERIALS[deck.materials[sec.material].type]
+        kind = registry.MATERIALS[registry.CARDS["material"][deck.materials[sec.material].type].runs_on]
         card = deck.materials[sec.material]
         form = registry.CARDS["formulation"][sec.formulation]
         build = registry.FORMULATIONS[sec.formulation].build

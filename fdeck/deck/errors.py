@@ -10,6 +10,8 @@ from typing import Annotated, Literal, Union, get_args, get_origin
 
 from pydantic import BaseModel, ValidationError
 
+from fdeck import registry
+
 
 @dataclass(frozen=True)
 class Problem:
@@ -150,6 +152,26 @@ def unknown_name(what: str, name: str, known) -> str:
     return f"unknown {what} '{name}'{hint}"
 
 
+def _normal(word: str) -> str:
+    return re.sub(r"[\s_\-]", "", str(word)).lower()
+
+
+def unknown_material(name: str) -> str:
+    """Message for an unknown material `type`: a did-you-mean (common spellings and aliases of the named cards
+    included), then the named cards with a line each, then the general cards."""
+    cards = registry.cards("material")
+    spellings = {_normal(n): n for n in cards}
+    spellings.update({_normal(a): n for n, e in cards.items() for a in e.aliases})
+    guess = spellings.get(_normal(name))
+    if guess is None:
+        close = difflib.get_close_matches(_normal(name), list(spellings), n=1)
+        guess = spellings[close[0]] if close else None
+    named = [f"{n} ({e.description.splitlines()[0].rstrip('.')})" for n, e in cards.items() if e.kind]
+    general = [n for n, e in cards.items() if not e.kind]
+    return (f"unknown type '{name}'" + (f" (did you mean '{guess}'?)" if guess else "")
+            + f"; named cards: {'; '.join(named)}; general cards: {', '.join(general)}")
+
+
 def _suggest(word, choices) -> str:
     choices = [str(c) for c in choices]
     close = difflib.get_close_matches(str(word), choices, n=1)
@@ -182,6 +204,8 @@ def _problem(err, locations, filename, model_cls) -> Problem:
             tags = ast.literal_eval(ctx["expected_tags"])
             tags = tags if isinstance(tags, tuple) else (tags,)
             message = f"unknown {disc} '{ctx['tag']}'" + _suggest(ctx["tag"], tags)
+            if disc == "type" and set(tags) == set(registry.cards("material")):
+                message = unknown_material(ctx["tag"])
             if isinstance(node := _type_at(model_cls, path, data)[1], dict) and disc in node:
                 path, pos = path + (disc,), locations.lookup(path + (disc,))
         else:

@@ -291,6 +291,28 @@ class Deck(Card):
     def duration(self) -> float:
         return sum(s.duration for s in self.steps)
 
+    @model_validator(mode="before")
+    @classmethod
+    def _implied_formulations(cls, data):
+        """A section of a named shell material (`sm`, `ts`) that names no formulation gets the card's, and the
+        card's section preset when it gives neither a preset nor a thickness (``CardEntry.formulation``)."""
+        if not isinstance(data, dict) or not isinstance(data.get("sections"), list) \
+                or not isinstance(data.get("materials"), dict):
+            return data
+        cards = registry.cards("material")
+        sections = []
+        for sec in data["sections"]:
+            name = sec.get("material") if isinstance(sec, dict) else None
+            mat = data["materials"].get(name) if isinstance(name, str) else None
+            kind = mat.get("type") if isinstance(mat, dict) else None
+            entry = cards.get(kind) if isinstance(kind, str) else None
+            if entry is not None and entry.formulation and "formulation" not in sec:
+                sec = {**sec, "formulation": entry.formulation}
+                if "preset" not in sec and "thickness" not in sec:
+                    sec["preset"] = entry.section_preset
+            sections.append(sec)
+        return {**data, "sections": sections}
+
 
 def cross_reference_problems(deck: Deck) -> list[tuple[tuple, str, str]]:
     """Name references the schema cannot see: [(path, message, severity)]."""
@@ -298,6 +320,12 @@ def cross_reference_problems(deck: Deck) -> list[tuple[tuple, str, str]]:
     for i, s in enumerate(deck.sections):
         if s.material not in deck.materials:
             out.append((("sections", i, "material"), unknown_name("material", s.material, deck.materials), "error"))
+            continue
+        kind = deck.materials[s.material].type
+        implied = registry.cards("material")[kind].formulation
+        if implied and s.formulation != implied:
+            out.append((("sections", i, "formulation"), f"formulation '{s.formulation}' contradicts the material: "
+                        f"materials.{s.material}.type '{kind}' implies formulation '{implied}'", "error"))
     names = set(BUILTIN_AMPLITUDES) | set(deck.amplitudes)
     for group in ("boundary", "loads"):
         for i, c in enumerate(getattr(deck, group)):
