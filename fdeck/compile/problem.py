@@ -311,6 +311,9 @@ def compile_deck(deck: Deck, base: Path = Path(".")) -> Problem:
         for i, card in enumerate(getattr(deck, section)):
             ctx.path = (section, i)
             _build(registry.EFFECTS[card.type], card, ctx, problems, effects)
+    for i, card in enumerate(deck.contact):  # blank against tools, built only for decks with contact
+        ctx.path = ("contact", i)
+        _build(registry.EFFECTS["contact"], card, ctx, problems, effects)
     for name in registry.cards("effect", "step"):  # step settings (damping, bulk viscosity), built when a step asks
         ctx.path = ("steps",)
         _build(registry.EFFECTS[name], [getattr(s, name) for s in deck.steps], ctx, problems, effects)

@@ -16,6 +16,7 @@ from pydantic import Discriminator, Field, Tag, model_validator
 from fdeck import registry
 from fdeck.deck.base import Card
 from fdeck.deck.errors import unknown_name
+from fdeck.cards.contact import Contact, Tool
 from fdeck.cards.steps import BulkViscosity, Damping
 from fdeck.deck.section import SectionBase
 
@@ -283,6 +284,8 @@ class Deck(Card):
     amplitudes: dict[str, Amplitude] = Field(default_factory=dict)
     boundary: list[BoundaryCard] = Field(default_factory=list)  # type: ignore[valid-type]
     loads: list[LoadCard] = Field(default_factory=list)  # type: ignore[valid-type]
+    tools: dict[str, Tool] = Field(default_factory=dict, description="Rigid tools by name (punch, die, holder).")
+    contact: list[Contact] = Field(default_factory=list, description="Penalty contact of the blank with the tools.")
     steps: list[Step] = Field(min_length=1)
     output: Output = Field(default_factory=Output)
     checks: Checks = Field(default_factory=Checks)
@@ -332,6 +335,13 @@ def cross_reference_problems(deck: Deck) -> list[tuple[tuple, str, str]]:
             amp = getattr(c, "amplitude", None)
             if amp is not None and amp not in names:
                 out.append(((group, i, "amplitude"), unknown_name("amplitude", amp, names), "error"))
+    for i, c in enumerate(deck.contact):
+        if c.tool not in deck.tools:
+            out.append((("contact", i, "tool"), unknown_name("tool", c.tool, deck.tools), "error"))
+    for name, tool in deck.tools.items():
+        if tool.motion is not None and tool.motion.amplitude not in names:
+            out.append((("tools", name, "motion", "amplitude"), unknown_name("amplitude", tool.motion.amplitude,
+                                                                             names), "error"))
     measures = [m.name for m in deck.output.measures]
     for i, lim in enumerate(deck.checks.limits):
         if lim.measure not in measures:

@@ -1,0 +1,127 @@
+"""Cards of rigid tools (`tools:`) and of their contact with the blank (`contact:`); the effect is
+`fdeck.physics.effects.contact`, the tool geometry `fdeck.physics.tools.analytic`.
+
+A tool is a rigid analytic surface that moves by a prescribed translation. Contact is node-to-surface penalty
+(MODELS 7): a blank node whose gap to the tool surface is below zero (or below the clearance of the exponential law)
+is pushed out with the pressure of the normal law times its tributary area, and Coulomb friction with an elastic
+stick spring acts in the tangent plane.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Annotated, Literal, Union
+
+from pydantic import Field, model_validator
+
+from fdeck.deck.base import Card
+from fdeck.registry import CardEntry, register_card
+
+Vector = tuple[float, float, float]
+
+
+class _Shape(Card):
+    @model_validator(mode="after")
+    def _unit_vectors(self):
+        for name in ("normal", "axis"):
+            v = getattr(self, name, None)
+            if v is not None and math.sqrt(sum(c * c for c in v)) == 0.0:
+                raise ValueError(f"`{name}` must not be the zero vector")
+        return self
+
+
+class Plane(_Shape):
+    """Infinite plane through `point` with outward normal `normal` (the blank lies on the normal's side)."""
+
+    shape: Literal["plane"]
+    point: Vector = Field((0.0, 0.0, 0.0), description="A point of the plane [mm].")
+    normal: Vector = Field((0.0, 0.0, 1.0), description="Outward normal (normalised).")
+
+
+class Sphere(_Shape):
+    """Sphere of `radius` about `centre`; the blank lies outside (a hemispherical punch)."""
+
+    shape: Literal["sphere"]
+    centre: Vector = Field(description="Centre [mm].")
+    radius: float = Field(gt=0.0, description="Radius [mm].")
+
+
+class Cylinder(_Shape):
+    """Infinite circular cylinder of `radius` about the line through `point` along `axis`; the blank lies outside (a
+    roller, a rounded die edge, the capstan)."""
+
+    shape: Literal["cylinder"]
+    point: Vector = Field(description="A point of the axis [mm].")
+    axis: Vector = Field(description="Axis direction (normalised).")
+    radius: float = Field(gt=0.0, description="Radius [mm].")
+
+
+Shape = Annotated[Union[Plane, Sphere, Cylinder], Field(discriminator="shape")]
+
+
+class Motion(Card):
+    """Prescribed translation of the tool: u(t) = value * amplitude(t) * direction."""
+
+    direction: Vector = Field((0.0, 0.0, -1.0), description="Direction of travel (normalised).")
+    value: float = Field(0.0, description="Travel at amplitude 1 [mm].")
+    amplitude: str = Field("smooth", description="Amplitude name (see boundary `displacement`).")
+
+
+class Tool(Card):
+    """A rigid tool: its surface and its motion (fixed when `motion` is absent)."""
+
+    surface: Shape = Field(description="Analytic surface: plane, sphere or cylinder.")  # type: ignore[valid-type]
+    motion: Motion | None = Field(None, description="Prescribed translation; none = fixed tool.")
+
+
+class Linear(Card):
+    """p = stiffness * h for overclosure h > 0 (penetration), 0 otherwise."""
+
+    law: Literal["linear"]
+    stiffness: float = Field(gt=0.0, description="Pressure per penetration [MPa/mm]; the nodal force is p times the "
+                             "node's tributary area, so a node of area A is a spring of stiffness A * stiffness.")
+
+
+class Exponential(Card):
+    """Abaqus-style exponential pressure-overclosure (MODELS 7): p = 0 for h <= -c0, p0 / (e - 1) (h/c0 + 1)
+    (exp(h/c0 + 1) - 1) above, continued linearly once its slope reaches `max_stiffness` (so that the law cannot
+    ruin the stable step)."""
+
+    law: Literal["exponential"]
+    p0: float = Field(gt=0.0, description="Pressure at zero clearance [MPa].")
+    c0: float = Field(gt=0.0, description="Clearance at which the pressure starts [mm].")
+    max_stiffness: float = Field(gt=0.0, description="Largest slope dp/dh [MPa/mm]; linear beyond it.")
+
+
+NormalLaw = Annotated[Union[Linear, Exponential], Field(discriminator="law")]
+
+
+class Friction(Card):
+    """Coulomb friction with an elastic stick spring: the tangential force grows with the relative tangential
+    displacement at `stick_stiffness` times the node's normal stiffness until it reaches `static` times the normal
+    force; it then slides at `dynamic` times the normal force until it sticks again."""
+
+    static: float = Field(ge=0.0, description="Static friction coefficient mu_s [-].")
+    dynamic: float | None = Field(None, ge=0.0, description="Dynamic coefficient mu_d [-] (<= static); default "
+                                  "static.")
+    stick_stiffness: float = Field(1.0, gt=0.0, description="Tangential stick stiffness as a multiple of the normal "
+                                   "penalty stiffness of each node [-].")
+
+    @model_validator(mode="after")
+    def _order(self):
+        if self.dynamic is not None and self.dynamic > self.static:
+            raise ValueError(f"dynamic {self.dynamic} is above static {self.static}")
+        return self
+
+
+class Contact(Card):
+    """Penalty contact of blank nodes against one tool."""
+
+    tool: str = Field(description="Name of a tool in `tools`.")
+    nodes: str | None = Field(None, description="Node set of the blank; default: every node of the blank's exterior "
+                              "(faces of one hexahedron only, and every shell node, both faces).")
+    normal: NormalLaw = Field(description="Normal law: linear or exponential.")  # type: ignore[valid-type]
+    friction: Friction | None = Field(None, description="Coulomb friction; none = frictionless.")
+
+
+register_card(CardEntry("contact", Contact, "effect", "contact"))

@@ -1,0 +1,1 @@
+"""Rigid tool geometry (analytic surfaces)."""
