@@ -97,7 +97,7 @@ def test_confined_compaction_towards_the_singular_thickness_stays_stable_and_exa
 
 
 @pytest.mark.long
-@pytest.mark.parametrize("mass_factor", [1.0, 10.0])
+@pytest.mark.parametrize("mass_factor", [pytest.param(1.0, marks=pytest.mark.nightly), 10.0])
 def test_three_point_bending_1mm_fbar_with_fibre_bending_to_40mm_stays_stable(mass_factor):
     """Requirement: the 1 mm interlock three-point bending with F-bar + fibre bending runs to 40 mm of deflection
     without NaN, balanced to 1 % of the largest energy, with every element's in-plane and transverse shear below

@@ -7,13 +7,14 @@ import pytest
 
 import fdeck.physics  # noqa: F401
 from fdeck.compile.mesh import block
+from fdeck.cards.measures import SurfaceWaviness
 from fdeck.physics.measures import surface_waviness
 
 pytestmark = pytest.mark.unit
 
 
 def _measure(X, nodes):
-    card = surface_waviness.SurfaceWaviness(type="surface_waviness", name="w", nodes="top")
+    card = SurfaceWaviness(type="surface_waviness", name="w", nodes="top")
     win, s = surface_waviness.windows(X, nodes, 0, 2)
     return surface_waviness.Measure(card, win, s)
 
