@@ -168,3 +168,38 @@ sphere (2 % covers both), and the energy balance closes to 1 %."""
     assert deflection == pytest.approx(1.0 - (0.3 - 0.115), rel=0.02)
     scale = max(np.abs(h[c]).max() for c in ("kinetic_energy", "internal_energy", "tool_work_punch"))
     assert np.abs(h["energy_balance_error"]).max() < 0.01 * scale
+
+
+DETERMINISM = """
+import hashlib, numba
+import numpy as np
+from fdeck.compile.problem import compile_deck
+from fdeck.deck.model import Deck
+from fdeck.engine import solver
+solver.SERIAL_BELOW = 0  # use every thread even on this small model
+d = Deck.model_validate({
+    "mesh": {"block": {"origin": [0, 0, 0.01], "size": [40, 40, 4], "divisions": [20, 20, 2]}},
+    "materials": {"m": {"type": "neo_hookean", "density": 1e-9, "youngs_modulus": 10.0, "poisson_ratio": 0.3}},
+    "sections": [{"material": "m", "formulation": "fbar"}],
+    "tools": {"floor": {"surface": {"shape": "plane"}},
+              "punch": {"surface": {"shape": "sphere", "centre": [20, 20, 14.02], "radius": 10.0},
+                        "motion": {"value": 3.0, "amplitude": "ramp"}}},
+    "contact": [{"tool": "floor", "normal": {"law": "linear", "stiffness": 50.0}, "friction": {"static": 0.3}},
+                {"tool": "punch", "normal": {"law": "exponential", "p0": 0.01, "c0": 0.05, "max_stiffness": 50.0},
+                 "friction": {"static": 0.2, "dynamic": 0.15}}],
+    "steps": [{"duration": 1e-3, "max_cycles": 150}], "output": {"history_points": 3}})
+p = compile_deck(d)
+r = solver.run(p, solver.Sink())
+assert r.status == "completed", r.message
+assert abs(np.array(r.history)[-1, r.columns.index("tool_punch_force_z")]) > 0  # the punch touched
+print(numba.get_num_threads(), hashlib.sha256(r.final_positions.tobytes() + np.array(r.history).tobytes()).hexdigest())
+"""
+
+
+def test_contact_results_identical_on_one_and_two_threads():
+    """Requirement: a blank pressed by a sphere onto a floor, with friction on both, gives bitwise the same positions
+    and history (tool forces, contact and friction energies) on 1 and 2 threads (each contact node is computed by
+    one iteration; the per-tool sums are taken in a fixed order)."""
+    from helpers import digests_on_one_and_two_threads
+
+    assert len(digests_on_one_and_two_threads(DETERMINISM)) == 1
