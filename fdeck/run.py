@@ -37,11 +37,17 @@ def assemble_cells(problem) -> dict[str, np.ndarray]:
 
 
 class Outputs(solver.Sink):
-    """Frame series, history file and progress reporting for one run."""
+    """Frame series, history file and progress reporting for one run, and the end-of-run tables
+    (``output.paths``, ``output.fibre_table``).
+
+    Each frame also carries the point fields of the measures that have some (``point_fields(x) -> {name: (n_node,)
+    array}``, e.g. ``wrinkle``; two measures giving the same name are merged with fmax) and the surfaces of the
+    effects that have bodies (``Effect.surfaces()``: rigid tools), written as blocks of their own."""
 
     def __init__(self, problem, out_dir: Path, name: str, progress):
         from fdeck.io.frames import open_series
         from fdeck.io.history import HistoryWriter
+        from fdeck.physics.measures.tables import PathTable
 
         self.problem, self.progress_fn = problem, progress
         out_dir.mkdir(parents=True, exist_ok=True)
@@ -49,17 +55,41 @@ class Outputs(solver.Sink):
         self.hist = HistoryWriter(out_dir / "history.csv", solver.history_columns(problem))
         self.frames_written = 0
         self.last_frame_time = -1.0
+        self.out_dir = out_dir
+        self.paths = [PathTable(card, problem.groups, problem.X, problem.cells) for card in problem.deck.output.paths]
+        self.tables: list[str] = []  # file names of the end-of-run tables and plots
 
     def frame(self, t, x, v, point_fields=None):
         point = {"displacement": x - self.problem.X, "velocity": v.copy()}
         for name, val in (point_fields or {}).items():
             point[name] = np.array(val, copy=True)
+        for m in self.problem.measures:
+            for name, val in (m.point_fields(x) if hasattr(m, "point_fields") else {}).items():
+                point[name] = np.fmax(point[name], val) if name in point else np.array(val, copy=True)
+        surfaces = [s for e in self.problem.effects for s in e.surfaces()]
         with np.errstate(invalid="ignore", divide="ignore"):  # an inverted element's last frame holds NaN by design
             cells = assemble_cells(self.problem)
         for s in self.series:
-            s.write(t, point, cells)
+            s.write(t, point, cells, surfaces=surfaces)
         self.frames_written += 1
         self.last_frame_time = t
+
+    def tables_at_end(self, x):
+        """Write the end-of-run tables at positions x (n_node, 3), the last frame's; the groups hold that state."""
+        from fdeck.io.tables import plot_xy, write_table
+        from fdeck.physics.measures.tables import fibre_table
+
+        with np.errstate(invalid="ignore", divide="ignore"):
+            for p in self.paths:
+                cols = p.columns(x)
+                self.tables.append(write_table(self.out_dir / f"path_{p.name}.csv", cols).name)
+                png = self.out_dir / f"path_{p.name}.png"
+                if plot_xy(png, cols["arc_length"], cols["shear_angle"], "arc length along the path [mm]",
+                           "shear angle [deg]", f"path {p.name}"):
+                    self.tables.append(png.name)
+            if self.problem.deck.output.fibre_table:
+                table = fibre_table(self.problem.cells, x, assemble_cells(self.problem))
+                self.tables.append(write_table(self.out_dir / "fibres.csv", table).name)
 
     def history(self, row):
         self.hist.write_row(row)
@@ -108,6 +138,7 @@ def execute(deck, base: Path, out_dir: Path, name: str, deck_path: str, progress
         if (result.status in ("interrupted", "failed") or result.stopped_steps) and result.t > out.last_frame_time:
             last = None if result.final_directors is None else {"director": result.final_directors}
             out.frame(result.t, result.final_positions, result.final_velocities, last)
+        out.tables_at_end(result.final_positions)
     out.close()
     hist = np.array(result.history) if result.history else np.zeros((0, len(result.columns)))
     verdicts = checks_mod.evaluate(deck.checks, hist, result.columns, problem.duration)
@@ -118,6 +149,7 @@ def execute(deck, base: Path, out_dir: Path, name: str, deck_path: str, progress
         code = EXIT_NUMERIC
     else:
         code = EXIT_CHECK if any(not c["passed"] for c in verdicts) else EXIT_OK
+    summary["tables"] = out.tables
     summary["exit_code"] = code
     write_json_atomic(out_dir / "summary.json", summary)
     return code, summary

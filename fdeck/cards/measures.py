@@ -57,5 +57,41 @@ class SurfaceWaviness(Card):
     height: Literal["x", "y", "z"] = Field("z", description="Component measured (e.g. the deflection direction).")
 
 
+class DrawIn(Card):
+    """Draw-in [mm] of a blank edge: mean and largest inward displacement of a node set in the plane normal to the
+    punch axis (columns `<name>_mean`, `<name>_max`)."""
+
+    type: Literal["draw_in"]
+    name: str = Field(description="Column prefix in history.csv and summary.json.")
+    nodes: str = Field(description="Node set of the blank edge.")
+    axis: Literal["x", "y", "z"] = Field("z", description="Punch axis; displacement along it does not count.")
+    centre: tuple[float, float, float] | None = Field(
+        None, description="Point [mm] the inward directions aim at (default: centroid of the mesh's reference "
+        "nodes).")
+
+
+class Wrinkles(Card):
+    """Wrinkle indicator [mm]: per node of a surface, |height - local quadric fit| over the nodes within `radius`;
+    largest value and 99th percentile per region (columns `<name>_max`, `<name>_p99`, `<name>_<region>_...`),
+    frame point field `wrinkle`."""
+
+    type: Literal["wrinkles"]
+    name: str = Field(description="Column prefix in history.csv and summary.json.")
+    nodes: str = Field(description="Node set of the surface (shell nodes, or the top face of a hexahedral blank).")
+    radius: float = Field(gt=0, description="Patch radius R [mm], about a wrinkle wavelength (wrinkles shorter "
+                          "than 2R score their amplitude; at least 1.5 element sizes).")
+    regions: list[str] = Field(default_factory=list, description="Node or element sets reported separately.")
+
+    @model_validator(mode="after")
+    def _unique_regions(self):
+        dup = sorted({r for r in self.regions if self.regions.count(r) > 1})
+        if dup:
+            raise ValueError(f"regions repeated: {dup}")
+        return self
+
+
+for _card in (DrawIn, Wrinkles):
+    register_card(CardEntry(_card.model_fields["type"].annotation.__args__[0], _card, "measure"))
+
 for _card in (ElementAverage, NodeDisplacement, PinJointedShear, SurfaceWaviness):
     register_card(CardEntry(_card.model_fields["type"].annotation.__args__[0], _card, "measure"))

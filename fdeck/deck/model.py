@@ -225,6 +225,23 @@ class Step(Card):
                                    "next step starts there with its own duration; summary.json names such steps.")
 
 
+class OutputPath(Card):
+    """A polyline in the reference configuration along which the shear angle is tabulated at the end of the run
+    (``path_<name>.csv``, and ``path_<name>.png`` when matplotlib is installed)."""
+
+    name: str = Field(pattern=r"^[A-Za-z0-9][A-Za-z0-9_.-]*$",
+                      description="File name part: path_<name>.csv (letters, digits, '_', '.', '-').")
+    points: list[Vector] = Field(min_length=2, description="Corners of the polyline, reference coordinates [mm].")
+    samples: int = Field(100, ge=2, description="Points sampled evenly along the polyline's arc length.")
+
+    @model_validator(mode="after")
+    def _has_length(self):
+        zero = [i for i in range(1, len(self.points)) if self.points[i] == self.points[i - 1]]
+        if zero:
+            raise ValueError(f"points {zero[0] - 1} and {zero[0]} coincide: every segment needs a length")
+        return self
+
+
 class Output(Card):
     frames: int = Field(20, ge=1, description="Frames written, evenly spaced over the run (plus the initial one).")
     formats: list[Literal["vtu", "xdmf"]] = Field(["vtu"], min_length=1)
@@ -232,6 +249,21 @@ class Output(Card):
     reactions: list[str] = Field(default_factory=list, description="Node sets whose reaction forces are recorded.")
     measures: list[MeasureCard] = Field(  # type: ignore[valid-type]
         default_factory=list, description="Quantities recorded as history columns and reported in summary.json.")
+    paths: list[OutputPath] = Field(
+        default_factory=list, description="Polylines (reference configuration) along which the final shear angle "
+        "[deg] is written, with arc length [mm], reference and current points [mm], to path_<name>.csv (+ .png).")
+    fibre_table: bool = Field(
+        False, description="Write fibres.csv at the end: per element (1-based, mesh order) the current centroid "
+        "[mm], the current unit warp and weft directions and the shear angle [deg], for mapping onto a structural "
+        "model.")
+
+    @model_validator(mode="after")
+    def _unique_paths(self):
+        names = [p.name for p in self.paths]
+        dup = sorted({n for n in names if names.count(n) > 1})
+        if dup:
+            raise ValueError(f"path names repeated: {dup}")
+        return self
 
 
 class QuasiStatic(Card):

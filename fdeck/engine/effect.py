@@ -63,3 +63,8 @@ class Effect:
 
     def rest_dt(self, rho: np.ndarray) -> np.ndarray | None:
         return None
+
+    def surfaces(self) -> list[tuple[str, np.ndarray, np.ndarray]]:
+        """Surfaces of the effect's own bodies to draw beside the blank in every frame (a rigid tool): a list of
+        (name, current points (n, 3) [mm], triangles (m, 3) int, 0-based); empty for effects without a body."""
+        return []

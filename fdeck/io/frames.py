@@ -40,6 +40,16 @@ Conventions (both formats)
 * Times are float seconds, strictly increasing from frame to frame (two frames at one time are ambiguous to
   ParaView's time controls; it is an error, not something to paper over).
 
+Moving surfaces (rigid tools)
+-----------------------------
+``write(..., surfaces=[(part, points (n, 3), triangles (m, 3) int), ...])`` adds triangulated surfaces (the
+``Effect.surfaces()`` of the run's tools) to the frame, each as its own block, in current coordinates [mm]:
+VTU: one more file ``<name>_<part>_<k:05d>.vtu`` per surface and frame, listed in the same ``.pvd`` at the same
+time with ``part="i"`` (the blank is part 0, surfaces 1, 2, ... in order of first appearance), so ParaView's PVD
+reader shows blank and tools as one multiblock data set. XDMF: one more temporal collection per surface in the same
+``.xdmf`` (HDF5 ``/surfaces/<part>/<k:05d>/points`` and ``/triangles``), written *before* the blank's collection so
+that readers taking one collection (meshio's ``TimeSeriesReader`` takes the last) still read the blank.
+
 Crash safety
 ------------
 Frame ``k`` appears in the index (``.pvd`` / ``.xdmf``) only after its data is complete on disk, and the index is
@@ -189,6 +199,32 @@ def _fields(data: Mapping[str, np.ndarray] | None, n: int, where: str, split: bo
     return out
 
 
+def _check_surfaces(surfaces) -> list[tuple[str, np.ndarray, np.ndarray]]:
+    """Validate [(part, points (n, 3), triangles (m, 3))] -> same with contiguous float64 / int64 arrays."""
+    out, seen = [], set()
+    for part, points, triangles in surfaces or ():
+        part = _check_name(part)
+        if part in seen:
+            raise ValueError(f"surface {part!r} given twice in one frame")
+        seen.add(part)
+        pts = _check_points(points)
+        (_, tri), = _check_cells({"triangle": triangles}, len(pts))
+        out.append((part, pts, tri))
+    return out
+
+
+def _write_vtu_atomic(path: Path, mesh: meshio.Mesh, compression) -> None:
+    """meshio VTU (binary, UInt64 headers) to a temporary file renamed to ``path``: complete or absent."""
+    tmp = path.parent / f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp"
+    try:
+        # UInt64 block headers: VTK's default UInt32 caps one (compressed) array at 4 GiB.
+        meshio.write(tmp, mesh, file_format="vtu", binary=True, compression=compression, header_type="UInt64")
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+
+
 class _Series(abc.ABC):
     """Validation and bookkeeping common to both writers; subclasses implement ``_write_frame``."""
 
@@ -209,7 +245,7 @@ class _Series(abc.ABC):
     def n_frames(self) -> int:
         return len(self.times)
 
-    def write(self, time: float, point_data=None, cell_data=None, points=None) -> Path:
+    def write(self, time: float, point_data=None, cell_data=None, points=None, surfaces=None) -> Path:
         """Write one frame and update the index; return the path of the index file.
 
         time        float [s], finite, greater than the previous frame's.
@@ -217,6 +253,8 @@ class _Series(abc.ABC):
         cell_data   {name: (n_cell_total, ...)} concatenated over the cell blocks in ``cells`` order,
                     e.g. "stress" (n_cell_total, 6) in XX YY ZZ XY YZ XZ order.
         points      optional (n_node, 3) coordinates replacing the reference ones for this frame only.
+        surfaces    optional [(part name, points (n, 3) [mm], triangles (m, 3) int 0-based), ...]: moving surfaces
+                    (rigid tools) written beside the mesh in this frame (module docstring).
         """
         if self._closed:
             raise RuntimeError(f"series {self.name!r} is closed")
@@ -231,13 +269,26 @@ class _Series(abc.ABC):
         if both:
             raise ValueError(f"field names used for both points and cells: {both}")
         pts = None if points is None else _check_points(points, self.n_node)
+        surfs = _check_surfaces(surfaces)
         index = self._write_frame(len(self.times), t, pd, cd, pts)
+        for part, spts, tri in surfs:
+            self._write_surface(len(self.times), t, part, spts, tri)
+        if surfs:
+            self._write_index()
         self.times.append(t)
         return index
 
     @abc.abstractmethod
     def _write_frame(self, k, t, pd, cd, pts) -> Path:
         """Write frame k at time t (point and cell fields, optional moved points); return the frame's file."""
+
+    @abc.abstractmethod
+    def _write_surface(self, k, t, part, points, triangles) -> None:
+        """Write surface ``part`` of frame k (after the frame's mesh); the caller then rewrites the index."""
+
+    @abc.abstractmethod
+    def _write_index(self) -> None:
+        """Replace the index file (atomically) by one listing every frame written so far."""
 
     def close(self) -> None:
         """Finish the series (idempotent). Every frame is already complete on disk; this only forbids more."""
@@ -282,6 +333,7 @@ class VtuSeries(_Series):
         self.pvd_path = self.out_dir / f"{self.name}.pvd"
         self.files: list[Path] = []
         self._entries: list[str] = []
+        self._parts: dict[str, int] = {}  # surface name -> PVD part number (the mesh is part 0)
         stale = re.compile(rf"^{re.escape(self.name)}_\d{{5,}}\.vtu$")
         for p in self.out_dir.iterdir():
             if stale.match(p.name):
@@ -302,21 +354,28 @@ class VtuSeries(_Series):
             cell_data=cell_data,
         )
         path = self._frame_path(k)
-        tmp = self.out_dir / f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp"
-        try:
-            # UInt64 block headers: VTK's default UInt32 caps one (compressed) array at 4 GiB.
-            meshio.write(
-                tmp, mesh, file_format="vtu", binary=True, compression=self.compression, header_type="UInt64"
-            )
-            os.replace(tmp, path)  # the frame appears complete or not at all
-        except BaseException:
-            tmp.unlink(missing_ok=True)
-            raise
+        _write_vtu_atomic(path, mesh, self.compression)  # the frame appears complete or not at all
         self.files.append(path)
         entry = ET.Element("DataSet", timestep=repr(t), group="", part="0", file=path.name)
         self._entries.append(_indent(entry, 2))
         self._write_pvd()  # only now does the index name the frame
         return self.pvd_path
+
+    def _write_surface(self, k, t, part, points, triangles) -> None:
+        if part not in self._parts:
+            self._parts[part] = len(self._parts) + 1
+            stale = re.compile(rf"^{re.escape(self.name)}_{re.escape(part)}_\d{{5,}}\.vtu$")
+            for p in self.out_dir.iterdir():  # frames of this surface left by an earlier run of the same name
+                if stale.match(p.name):
+                    p.unlink()
+        path = self.out_dir / f"{self.name}_{part}_{k:05d}.vtu"
+        _write_vtu_atomic(path, meshio.Mesh(points, [("triangle", triangles)]), self.compression)
+        self.files.append(path)
+        entry = ET.Element("DataSet", timestep=repr(t), group="", part=str(self._parts[part]), file=path.name)
+        self._entries.append(_indent(entry, 2))
+
+    def _write_index(self) -> None:
+        self._write_pvd()
 
     def _write_pvd(self) -> None:
         text = (
@@ -382,6 +441,7 @@ class XdmfSeries(_Series):
         self.h5_path = self.out_dir / f"{self.name}.h5"
         self.xdmf_path = self.out_dir / f"{self.name}.xdmf"
         self._grids: list[str] = []
+        self._surface_grids: dict[str, list[str]] = {}  # surface name -> its uniform grids, one per frame
 
         if len(self.blocks) == 1:
             ctype, conn = self.blocks[0]
@@ -445,14 +505,36 @@ class XdmfSeries(_Series):
         self._write_xdmf()
         return self.xdmf_path
 
+    def _write_surface(self, k, t, part, points, triangles) -> None:
+        key = f"{k:05d}"
+        base = f"surfaces/{part}/{key}"
+        with self._open_h5("a") as f:
+            if base in f:  # left by an earlier write() of this frame that raised
+                del f[base]
+            f.create_dataset(f"{base}/points", data=points)
+            f.create_dataset(f"{base}/triangles", data=triangles)
+        h5 = self.h5_path.name
+        grid = ET.Element("Grid", Name=f"{part}_{key}", GridType="Uniform")
+        ET.SubElement(grid, "Time", Value=repr(t))
+        geo = ET.SubElement(grid, "Geometry", GeometryType="XYZ")
+        geo.append(_data_item(h5, f"/{base}/points", points.shape, points.dtype))
+        topo = ET.SubElement(grid, "Topology", TopologyType="Triangle", NumberOfElements=str(len(triangles)))
+        topo.append(_data_item(h5, f"/{base}/triangles", triangles.shape, triangles.dtype))
+        self._surface_grids.setdefault(part, []).append(_indent(grid, 3))
+
+    def _write_index(self) -> None:
+        self._write_xdmf()
+
     def _write_xdmf(self) -> None:
+        # surfaces first: meshio's TimeSeriesReader reads the last temporal collection, which stays the mesh's
+        collections = [(part, grids) for part, grids in self._surface_grids.items()] + [(self.name, self._grids)]
         text = (
             '<?xml version="1.0" encoding="utf-8"?>\n'
             '<Xdmf Version="3.0">\n'
             "  <Domain>\n"
-            f'    <Grid Name={quoteattr(self.name)} GridType="Collection" CollectionType="Temporal">\n'
-            + "".join(self._grids)
-            + "    </Grid>\n  </Domain>\n</Xdmf>\n"
+            + "".join(f'    <Grid Name={quoteattr(name)} GridType="Collection" CollectionType="Temporal">\n'
+                      + "".join(grids) + "    </Grid>\n" for name, grids in collections)
+            + "  </Domain>\n</Xdmf>\n"
         )
         atomic_write_text(self.xdmf_path, text)
 

@@ -1,0 +1,77 @@
+"""End-of-run tables a forming engineer reads: the shear angle along user paths, the per-element fibre table.
+
+* ``PathTable``: a polyline given in the reference configuration (``output.paths``) sampled evenly along its arc
+  length; each sample is located once in its element (``locate``) and followed to the current configuration
+  through that element's shape functions; its shear angle is the one of that element (the element holding the
+  sample, or the nearest one; the ``distance`` column says which).
+* ``fibre_table``: per element in mesh order, the current centroid, the current unit warp and weft directions and
+  the shear angle, for mapping the draped fibre architecture onto a structural model.
+
+Columns are plain arrays; writing them is ``fdeck.io.tables``'s job.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from fdeck.physics.measures.locate import locate
+
+
+def polyline(points, samples: int) -> tuple[np.ndarray, np.ndarray]:
+    """Corners (k, 3) [mm] -> arc lengths s (samples,) [mm] from the first corner and the points (samples, 3)."""
+    P = np.asarray(points, dtype=float)
+    seg = np.linalg.norm(np.diff(P, axis=0), axis=1)
+    cum = np.concatenate([[0.0], np.cumsum(seg)])
+    s = np.linspace(0.0, cum[-1], samples)
+    i = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(seg) - 1)
+    t = (s - cum[i]) / seg[i]
+    return s, P[i] + t[:, None] * (P[i + 1] - P[i])
+
+
+class PathTable:
+    """One ``output.paths`` entry over the element groups (located once, in the reference configuration)."""
+
+    def __init__(self, card, groups: list, X: np.ndarray, cells: dict[str, np.ndarray]):
+        self.name, self.groups = card.name, groups
+        starts = np.cumsum([0] + [len(c) for c in cells.values()])
+        self.offset = dict(zip(cells, starts.tolist()))  # first mesh-order index of each cell type
+        self.s, self.P = polyline(card.points, card.samples)
+        self.where = locate(groups, X, self.P)
+
+    def columns(self, x: np.ndarray) -> dict[str, np.ndarray]:
+        """Columns at positions x (n_node, 3): arc length [mm], reference point [mm], distance to the element [mm],
+        current point [mm], element (1-based, mesh order as in fibres.csv and the frames), shear angle [deg] (NaN where the
+        element's law has none). Call after the groups were updated at x (their cell fields are read)."""
+        gamma = np.full(len(self.s), np.nan)
+        element = np.zeros(len(self.s), np.int64)
+        for gi, g in enumerate(self.groups):
+            sel = np.nonzero(self.where.group == gi)[0]
+            if not len(sel):
+                continue
+            local, inverse = np.unique(self.where.element[sel], return_inverse=True)
+            element[sel] = self.offset[g.cell_type] + g.element_index[local][inverse] + 1
+            fields = g.cell_fields(local)
+            if "shear_angle" in fields:
+                gamma[sel] = fields["shear_angle"][inverse]
+        cur = self.where.current(self.groups, x)
+        return {"arc_length": self.s, "X": self.P[:, 0], "Y": self.P[:, 1], "Z": self.P[:, 2],
+                "distance": self.where.distance, "x": cur[:, 0], "y": cur[:, 1], "z": cur[:, 2],
+                "element": element, "shear_angle": gamma}
+
+
+def fibre_table(cells: dict[str, np.ndarray], x: np.ndarray, fields: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """Per element in mesh order (cells {type: conn}, concatenated in dict order; ``fields`` the assembled cell
+    fields, see ``fdeck.run.assemble_cells``): element (1-based), current centroid (mean of the element's distinct
+    nodes) [mm], current warp and weft unit vectors (the laws' point-averaged directions renormalised), shear
+    angle [deg]. Elements whose law has no fibres get NaN."""
+    centroids = np.concatenate([x[conn].mean(axis=1) for conn in cells.values()])
+    n = len(centroids)
+    out = {"element": np.arange(1, n + 1), "cx": centroids[:, 0], "cy": centroids[:, 1], "cz": centroids[:, 2]}
+    for fam in ("warp", "weft"):
+        keys = [f"{fam}_{c}" for c in "xyz"]
+        d = np.stack([fields[k] for k in keys], axis=1) if all(k in fields for k in keys) else np.full((n, 3), np.nan)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            d = d / np.linalg.norm(d, axis=1, keepdims=True)
+        out.update({k: d[:, i] for i, k in enumerate(keys)})
+    out["shear_angle"] = fields.get("shear_angle", np.full(n, np.nan))
+    return out
