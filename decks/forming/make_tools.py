@@ -1,7 +1,7 @@
-"""Write the rigid-tool surfaces of the forming decks into decks/forming/tools/ (binary STL, quarter models).
+"""Write the rigid-tool surfaces of the forming decks into decks/forming/tools/ (binary STL; quarter models, half for the tetrahedron).
 
 Tools are written in their INITIAL position: die flange at z = 0 with the blank on it, punch / upper tool raised by
-its travel above its closed position (double dome 65 mm, MODELS.md 6.4; square tube 20 mm, 6.5), so a deck moves
+its travel above its closed position (double dome and tetrahedron 65 mm, MODELS.md 6.4; square tube 20 mm, 6.5), so a deck moves
 them by -travel along z. Run: python decks/forming/make_tools.py
 """
 
@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fdeck.physics.tools.generators import double_dome, square_tube, write_surface
+from fdeck.physics.tools.generators import double_dome, square_tube, tetrahedron, write_surface
 
 OUT = Path(__file__).resolve().parent / "tools"
 H = 4.0            # plan edge on curved parts [mm]: chord error <= 4^2 / (8 * 12.6) = 0.16 mm on the punch fillet
@@ -17,6 +17,8 @@ TOOLS = {
     "double_dome_punch.stl": (double_dome, dict(part="punch", h=H), 65.0),
     "double_dome_die.stl": (double_dome, dict(part="die", h=H), 0.0),
     "double_dome_holder.stl": (double_dome, dict(part="holder", h=H), 0.0),
+    "tetrahedron_punch.stl": (tetrahedron, dict(part="punch", h=H), 65.0),
+    "tetrahedron_die.stl": (tetrahedron, dict(part="die", h=H), 0.0),
     "square_tube_lower.stl": (square_tube, dict(part="lower", h=2.0), 0.0),
     "square_tube_upper.stl": (square_tube, dict(part="upper", h=2.0), 20.0),
 }

@@ -245,3 +245,142 @@ def square_tube(part="lower", quarter=True, h=3.0, h_coarse=20.0, half_side=50.0
     if part == "upper":
         return _sheet(xs, ys, step_profile(s, height, wall_angle, r_top, r_bot, clearance), up=False)
     raise ValueError(f"square_tube: unknown part {part!r} (lower, upper)")
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# tetrahedral punch (Boisse group)
+# ----------------------------------------------------------------------------------------------------------------
+def _span(lo: float, hi: float, fine_lo: float, fine_hi: float, h: float, h_coarse: float) -> np.ndarray:
+    """1-D nodes on [lo, hi]: spacing <= h on [fine_lo, fine_hi], <= h_coarse outside; 0 is a node when inside."""
+    parts = []
+    for a, b, s in ((lo, fine_lo, h_coarse), (fine_lo, fine_hi, h), (fine_hi, hi, h_coarse)):
+        if b > a:
+            parts.append(np.linspace(a, b, max(2, int(np.ceil((b - a) / s)) + 1)))
+    return _with(np.concatenate(parts), 0.0)
+
+
+def _closest_on_triangle(p, a, b, c):
+    """Closest points (n, 3) on the triangle (a, b, c) to the points p (n, 3) (Voronoi regions of the vertices,
+    edges and face; Ericson, Real-Time Collision Detection, 2005, section 5.1.5)."""
+    ab, ac = b - a, c - a
+    ap, bp, cp = p - a, p - b, p - c
+    d1, d2, d3, d4, d5, d6 = ap @ ab, ap @ ac, bp @ ab, bp @ ac, cp @ ab, cp @ ac
+    va, vb, vc = d3 * d6 - d5 * d4, d5 * d2 - d1 * d6, d1 * d4 - d3 * d2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        on_ab = a + np.nan_to_num(d1 / (d1 - d3))[:, None] * ab
+        on_ac = a + np.nan_to_num(d2 / (d2 - d6))[:, None] * ac
+        on_bc = b + np.nan_to_num((d4 - d3) / ((d4 - d3) + (d5 - d6)))[:, None] * (c - b)
+        den = va + vb + vc
+        face = a + np.nan_to_num(vb / den)[:, None] * ab + np.nan_to_num(vc / den)[:, None] * ac
+    cond = [(d1 <= 0) & (d2 <= 0), (d3 >= 0) & (d4 <= d3), (vc <= 0) & (d1 >= 0) & (d3 <= 0),
+            (d6 >= 0) & (d5 <= d6), (vb <= 0) & (d2 >= 0) & (d6 <= 0),
+            (va <= 0) & (d4 - d3 >= 0) & (d5 - d6 >= 0)]
+    out = face.copy()
+    for m, q in reversed(list(zip(cond, [np.broadcast_to(a, p.shape), np.broadcast_to(b, p.shape), on_ab,
+                                         np.broadcast_to(c, p.shape), on_ac, on_bc]))):
+        out = np.where(m[:, None], q, out)
+    return out
+
+
+def tetra_core(apex_z=-50.0, side=265.0, core_height=120.0):
+    """Vertices (4, 3) [mm] of the core tetrahedron, apex down at (0, 0, apex_z), top equilateral triangle of
+    ``side`` at apex_z + core_height with one vertex on +x (symmetry plane y = 0), and its faces (4, 3) wound
+    outward."""
+    Rc = side / np.sqrt(3.0)
+    ang = np.radians([0.0, 120.0, 240.0])
+    top = np.column_stack([Rc * np.cos(ang), Rc * np.sin(ang), np.full(3, apex_z + core_height)])
+    v = np.vstack([[0.0, 0.0, apex_z], top])
+    faces = np.array([[0, 2, 1], [0, 3, 2], [0, 1, 3], [1, 2, 3]])
+    return v, faces
+
+
+def _dist_to_tetra(p, v, faces):
+    """Euclidean distance (n,) [mm] of the points p (n, 3) to the solid tetrahedron (0 inside)."""
+    n = np.cross(v[faces[:, 1]] - v[faces[:, 0]], v[faces[:, 2]] - v[faces[:, 0]])
+    inside = np.all(np.einsum("nfk,fk->nf", p[:, None, :] - v[faces[:, 0]][None], n) <= 0.0, axis=1)
+    d = np.min([np.linalg.norm(p - _closest_on_triangle(p, *v[f]), axis=1) for f in faces], axis=0)
+    return np.where(inside, 0.0, d)
+
+
+def tetra_lower_envelope(x, y, radius=10.0, **core):
+    """Lowest z [mm] of the rounded tetrahedron (core tetrahedron + ball of ``radius``) above each plan point
+    (x, y) (arrays of one shape), +inf outside its footprint. The distance to the convex core is convex along a
+    vertical line, so a ternary search finds its minimum and a bisection its lower crossing of ``radius``."""
+    v, faces = tetra_core(**core)
+    shape = np.shape(x)
+    xy = np.column_stack([np.ravel(x), np.ravel(y)])
+
+    def f(z):
+        return _dist_to_tetra(np.column_stack([xy, z]), v, faces) - radius
+
+    lo = np.full(len(xy), v[:, 2].min() - radius - 1.0)
+    hi = np.full(len(xy), v[:, 2].max())
+    for _ in range(80):                                           # ternary search: z of the minimum distance
+        m1, m2 = lo + (hi - lo) / 3, hi - (hi - lo) / 3
+        left = f(m1) <= f(m2)
+        hi, lo = np.where(left, m2, hi), np.where(left, lo, m1)
+    zmin = 0.5 * (lo + hi)
+    inside = f(zmin) <= 0.0
+    a, b = np.full(len(xy), v[:, 2].min() - radius - 1.0), zmin   # f(a) > 0 >= f(b) where inside
+    for _ in range(60):
+        m = 0.5 * (a + b)
+        pos = f(m) > 0.0
+        a, b = np.where(pos, m, a), np.where(pos, b, m)
+    return np.where(inside, b, np.inf).reshape(shape)
+
+
+def _triangle_sd(x, y, inradius):
+    """Plan signed distance [mm] to the equilateral triangle of the given inradius centred at 0, one vertex on +x."""
+    nrm = np.radians([180.0, 60.0, -60.0])                         # outward edge normals
+    pts = np.stack([x, y], axis=-1)
+    dplane = np.max([pts @ np.array([np.cos(a), np.sin(a)]) - inradius for a in nrm], axis=0)
+    R = 2.0 * inradius
+    ang = np.radians([0.0, 120.0, 240.0])
+    V = np.column_stack([R * np.cos(ang), R * np.sin(ang)])
+    dseg = []
+    for i in range(3):
+        a_, b_ = V[i], V[(i + 1) % 3]
+        t = np.clip(((pts - a_) @ (b_ - a_)) / ((b_ - a_) @ (b_ - a_)), 0.0, 1.0)
+        dseg.append(np.linalg.norm(pts - (a_ + t[..., None] * (b_ - a_)), axis=-1))
+    return np.where(dplane <= 0.0, dplane, np.min(dseg, axis=0))
+
+
+def tetrahedron(part="punch", half=True, h=4.0, h_coarse=25.0, side=265.0, core_height=120.0, radius=10.0,
+                lowest=-60.0, clearance=2.6, die_gap=5.0, entry_radius=10.0, wall_angle=80.0, wall_cut=20.0,
+                extent=(300.0, 250.0), back=30.0):
+    """Tetrahedral punch test (Allaoui, Boisse, Chatel, Hamila, Hivet, Soulat, Vidal-Salle, Composites Part A 42
+    (2011) 612-622; used with 3WEAVE in Pazmino et al., Composites Part A 72 (2015)): a tetrahedral punch pushes
+    the fabric through a triangular opening of an open die. Published tool dimensions were not found: ALL numbers
+    are REPRESENTATIVE.
+
+    part "punch": closed solid, the core tetrahedron (apex down, top equilateral triangle of ``side`` 265 mm,
+    ``core_height`` 120 mm; lateral faces at 57.5 deg) rounded by ``radius`` 10 mm on every edge and at the apex
+    (Minkowski sum with a ball), mounted under a flat plate at the core's top face, lowest point at ``lowest``
+    (closed position = end of travel; the die plane is z = 0). part "die": open sheet, normals up, flange z = 0
+    with a triangular opening: the punch's section at z = 0 plus ``clearance`` and ``die_gap`` (plan), entry edge
+    radius ``entry_radius``, wall at ``wall_angle`` cut ``wall_cut`` below the flange (the cut rim follows the grid,
+    below anything the blank reaches). ``half``: y >= 0 (symmetry plane through the apex and one top vertex).
+    """
+    apex_z = lowest + radius
+    core = dict(apex_z=apex_z, side=side, core_height=core_height)
+    Rc = side / np.sqrt(3.0)
+    ylo = 0.0 if half else -side / 2 - radius - h
+    if part == "punch":
+        xs = _span(-Rc / 2 - radius - h, Rc + radius + h, -Rc / 2 - radius - h, Rc + radius + h, h, h)
+        ys = _span(ylo, side / 2 + radius + h, ylo, side / 2 + radius + h, h, h)
+        X, Y = np.meshgrid(xs, ys, indexing="ij")
+        z = np.minimum(tetra_lower_envelope(X, Y, radius, **core), apex_z + core_height)
+        return _closed(xs, ys, z, apex_z + core_height + back)
+    if part == "die":
+        inr = side / (2 * np.sqrt(3.0))
+        slope = np.arctan(core_height / inr)
+        inr0 = (0.0 - apex_z) / core_height * inr + (radius + clearance) / np.sin(slope) + die_gap
+        fine = 2 * inr0 + entry_radius + 3 * h
+        xs = _span(-extent[0], extent[0], -inr0 - entry_radius - 3 * h, fine, h, h_coarse)
+        ys = _span(0.0 if half else -extent[1], extent[1], 0.0 if half else -fine, fine, h, h_coarse)
+        X, Y = np.meshgrid(xs, ys, indexing="ij")
+        z = step_profile(-_triangle_sd(X, Y, inr0), 2 * wall_cut, wall_angle, entry_radius, entry_radius)
+        pts, tri = _sheet(xs, ys, z, up=True)
+        keep = (pts[tri, 2] >= -wall_cut).any(axis=1)
+        return _drop_degenerate(pts, tri[keep])
+    raise ValueError(f"tetrahedron: unknown part {part!r} (punch, die)")
