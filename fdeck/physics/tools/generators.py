@@ -166,9 +166,9 @@ def double_dome(part="punch", quarter=True, h=4.0, h_coarse=20.0, half_width=135
     ``holder_gap``, the blank thickness, normals down, with the die's opening cut out of it).
     Dimensions: die cavity 2*half_length x 2*half_width = 470 x 270 mm, ``depth`` 60 mm: the plan size and depth
     of the benchmark die as distributed in the benchmark's STL (270 x 470 x 60 mm, as reported by the public
-    RTMsim-Py validation scripts, Pierce & Falzon, Engineering 3 (2017)); lobe shape (spheres, R = 181.9 mm with
+    RTMsim-Py validation scripts, Pierce & Falzon, Engineering 3 (2017)); lobe shape (spheres, R = 171.9 mm with
     the defaults), entry radius 10 mm, saddle blend 20 mm, clearance 2.6 mm (3WEAVE 2.54 mm + 0.06) are
-    REPRESENTATIVE choices (the benchmark's drawing was not found). The saddle between the lobes lies 32 mm above
+    REPRESENTATIVE choices (the benchmark's drawing was not found). The saddle between the lobes lies 27 mm above
     the lobe bottoms with the defaults. ``extent`` is the half size of the die/holder sheets (covers the 300 x 300
     quarter blank of [P] with margin); ``back`` the punch's thickness above its highest face point.
     """
