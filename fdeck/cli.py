@@ -172,6 +172,18 @@ def info(deck: Path = typer.Argument(..., help="Deck file.")):
                    + (f", rotational inertia +{100 * g.added_rotational_inertia:.3g} % over rho h^3/12 (so rotations "
                       "do not set the step)" if g.rotational else ""))
     typer.echo(f"  effects: {', '.join(e.name for e in p.effects) or 'none'}")
+    for name, tool in d.tools.items():
+        mo = tool.motion
+        unit = {"displacement": "mm", "velocity": "mm/s", "force": "N"}
+        motion = "fixed" if mo is None else (
+            f"{mo.kind} {mo.value:g} {unit[mo.kind]} along {list(mo.direction)}, amplitude {mo.amplitude_name}"
+            + (f", mass {mo.mass:g} t" if mo.mass is not None else ""))
+        where = f" '{tool.surface.file}'" if tool.surface.shape == "mesh" else ""
+        typer.echo(f"  tool {name}: {tool.surface.shape}{where}, {motion}")
+    for e in p.effects:
+        line = e.describe(p.steps[0])
+        if line:
+            typer.echo(f"  {line}")
     typer.echo(f"  about {cycles} cycles in all (the step follows the current tangent, so it may differ); "
                f"element arrays {mem / 2**20:.1f} MiB")
 

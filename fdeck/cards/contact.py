@@ -1,7 +1,9 @@
-"""Cards of rigid tools (`tools:`) and of their contact with the blank (`contact:`); the effect is
-`fdeck.physics.effects.contact`, the tool geometry `fdeck.physics.tools.analytic`.
+"""Cards of rigid tools (`tools:`) and of their contact with the blank (`contact:`); the effects are
+`fdeck.physics.effects.tool` (the tool's motion) and `fdeck.physics.effects.contact`, the geometry
+`fdeck.physics.tools.analytic` and `fdeck.physics.tools.triangulated`.
 
-A tool is a rigid analytic surface that moves by a prescribed translation. Contact is node-to-surface penalty
+A tool is a rigid surface (analytic, or triangles read from a file) that translates: by a prescribed displacement
+or velocity, or driven by a force on a mass of its own (a blank holder). Contact is node-to-surface penalty
 (MODELS 7): a blank node whose gap to the tool surface is below zero (or below the clearance of the exponential law)
 is pushed out with the pressure of the normal law times its tributary area, and Coulomb friction with an elastic
 stick spring acts in the tangent plane.
@@ -56,22 +58,73 @@ class Cylinder(_Shape):
     radius: float = Field(gt=0.0, description="Radius [mm].")
 
 
-Shape = Annotated[Union[Plane, Sphere, Cylinder], Field(discriminator="shape")]
+class RoundedBox(_Shape):
+    """Box of half-sizes `half_size` about `centre` (axis-aligned) with every edge and corner rounded by `radius`
+    (the rounding lies inside the half-sizes); the blank lies outside (a punch, a die block)."""
+
+    shape: Literal["rounded_box"]
+    centre: Vector = Field(description="Centre [mm].")
+    half_size: Vector = Field(description="Half-sizes along x, y, z, rounding included [mm].")
+    radius: float = Field(0.0, ge=0.0, description="Edge and corner radius [mm] (0: sharp box).")
+
+    @model_validator(mode="after")
+    def _radius_fits(self):
+        if min(self.half_size) <= self.radius:
+            raise ValueError(f"radius {self.radius} must be below every half-size {list(self.half_size)}")
+        return self
+
+
+class Mesh(_Shape):
+    """Triangulated surface read from a file (STL, OBJ, an Abaqus .inp with R3D3/R3D4 elements, or any surface mesh
+    meshio reads; quadrilaterals are split in two). Triangle normals (p1 - p0) x (p2 - p0) must point out of the tool,
+    toward the blank (`flip: true` reverses a file written the other way round). Open sheets are allowed."""
+
+    shape: Literal["mesh"]
+    file: str = Field(description="Surface file, relative to the deck's folder.")
+    part: str | None = Field(None, description="Cell set of the file to use (an Abaqus element set); default all.")
+    flip: bool = Field(False, description="Reverse every triangle's orientation.")
+    scale: float = Field(1.0, gt=0.0, description="Factor on the file's coordinates (1 for a file in mm).")
+    offset: Vector = Field((0.0, 0.0, 0.0), description="Translation added to the file's coordinates [mm].")
+
+
+Shape = Annotated[Union[Plane, Sphere, Cylinder, RoundedBox, Mesh], Field(discriminator="shape")]
 
 
 class Motion(Card):
-    """Prescribed translation of the tool: u(t) = value * amplitude(t) * direction."""
+    """How the tool translates along `direction`: `displacement` u(t) = value * amplitude(t); `velocity`
+    v(t) = value * amplitude(t); `force`: a force value * amplitude(t) [N] pushes the tool of mass `mass` along
+    `direction` against the blank's contact reaction (a blank holder), integrated by central differences like the
+    blank."""
 
+    kind: Literal["displacement", "velocity", "force"] = Field("displacement", description="What `value` "
+                                                               "prescribes: displacement, velocity or force.")
     direction: Vector = Field((0.0, 0.0, -1.0), description="Direction of travel (normalised).")
-    value: float = Field(0.0, description="Travel at amplitude 1 [mm].")
-    amplitude: str = Field("smooth", description="Amplitude name (see boundary `displacement`).")
+    value: float = Field(0.0, description="Travel [mm], velocity [mm/s] or force [N] at amplitude 1.")
+    amplitude: str | None = Field(None, description="Amplitude name (see boundary `displacement`); default `smooth` "
+                                  "for a displacement, `constant` for a velocity or a force.")
+    mass: float | None = Field(None, gt=0.0, description="Mass of a force-driven tool [t]; required with kind force.")
+
+    @model_validator(mode="after")
+    def _force_has_mass(self):
+        if self.kind == "force" and self.mass is None:
+            raise ValueError("a force-driven tool needs its `mass` [t]")
+        if self.kind != "force" and self.mass is not None:
+            raise ValueError(f"`mass` is for force-driven tools only (this motion is a {self.kind})")
+        if math.sqrt(sum(c * c for c in self.direction)) == 0.0:
+            raise ValueError("`direction` must not be the zero vector")
+        return self
+
+    @property
+    def amplitude_name(self) -> str:
+        return self.amplitude or ("smooth" if self.kind == "displacement" else "constant")
 
 
 class Tool(Card):
     """A rigid tool: its surface and its motion (fixed when `motion` is absent)."""
 
-    surface: Shape = Field(description="Analytic surface: plane, sphere or cylinder.")  # type: ignore[valid-type]
-    motion: Motion | None = Field(None, description="Prescribed translation; none = fixed tool.")
+    surface: Shape = Field(description="Analytic surface (plane, sphere, cylinder, rounded_box) or a triangulated "
+                           "`mesh` file.")  # type: ignore[valid-type]
+    motion: Motion | None = Field(None, description="Prescribed translation or driving force; none = fixed tool.")
 
 
 class Linear(Card):
@@ -122,6 +175,10 @@ class Contact(Card):
                               "(faces of one hexahedron only, and every shell node, both faces).")
     normal: NormalLaw = Field(description="Normal law: linear or exponential.")  # type: ignore[valid-type]
     friction: Friction | None = Field(None, description="Coulomb friction; none = frictionless.")
+    search_distance: float | None = Field(None, gt=0.0, description="Triangulated tools: how far from the surface "
+                                          "a node is looked for [mm]; default the largest shell offset plus the "
+                                          "exponential law's clearance plus the blank's largest surface edge.")
 
 
+register_card(CardEntry("tool", Tool, "effect", "tools"))
 register_card(CardEntry("contact", Contact, "effect", "contact"))

@@ -31,6 +31,7 @@ class StepPlan:
     inertia: np.ndarray | None  # (n_node,) or None
     max_cycles: int | None
     added_mass: float  # fraction of the physical mass added by mass scaling
+    start: float = 0.0  # nominal start time of the step [s] (the sum of the earlier steps' durations)
 
 
 @dataclass
@@ -79,6 +80,8 @@ class Context:
         self.path: tuple = ()
         self.group = None
         self._surface = None
+        self.base = Path(".")  # folder of the deck file (files a deck names are relative to it)
+        self.tools: dict = {}  # rigid tools built so far, by name (``effects.tool``)
 
     def node_set(self, name: str) -> np.ndarray:
         if name not in self.mesh.node_sets:
@@ -276,7 +279,9 @@ def plan_steps(deck: Deck, groups: list, physical_mass: np.ndarray, effects=()) 
         mass = nodal_mass(groups, n_node, rho)
         inertia = nodal_inertia(groups, n_node, rho) if rotational else None
         added = (mass.sum() - total) / total
-        plans.append(StepPlan(s.name, s.duration, s.dt_safety, rho, mass, inertia, s.max_cycles, float(added)))
+        start = sum(p.duration for p in plans)
+        plans.append(StepPlan(s.name, s.duration, s.dt_safety, rho, mass, inertia, s.max_cycles, float(added),
+                              start))
     return plans
 
 
@@ -288,6 +293,7 @@ def _build(kind, card, ctx, problems: list, effects: list) -> None:
         problems += exc.problems
         return
     if effect is not None:
+        effect.path = ctx.path
         effects.append(effect)
 
 
@@ -298,6 +304,7 @@ def compile_deck(deck: Deck, base: Path = Path(".")) -> Problem:
     rotations = setup_rotations(deck, groups, len(mesh.X))
     mass = nodal_mass(groups, len(mesh.X), [g.rho for g in groups])
     ctx = Context(deck, mesh, groups, rotations, mass)
+    ctx.base = base
     effects, problems = [], []
     for i, sec in enumerate(deck.sections):  # section add-ons act on that section's groups
         for j, card in enumerate(getattr(sec, "effects", [])):
@@ -311,9 +318,17 @@ def compile_deck(deck: Deck, base: Path = Path(".")) -> Problem:
         for i, card in enumerate(getattr(deck, section)):
             ctx.path = (section, i)
             _build(registry.EFFECTS[card.type], card, ctx, problems, effects)
+    for name in dict.fromkeys(c.tool for c in deck.contact if c.tool in deck.tools):  # tools some contact uses
+        ctx.path = ("tools", name)
+        try:
+            ctx.tools[name] = registry.EFFECTS["tool"].build(name, deck.tools[name], ctx)
+            effects.append(ctx.tools[name])  # before the contact pairs: it clears their summed load each cycle
+        except CompileError as exc:
+            problems += exc.problems
     for i, card in enumerate(deck.contact):  # blank against tools, built only for decks with contact
         ctx.path = ("contact", i)
-        _build(registry.EFFECTS["contact"], card, ctx, problems, effects)
+        if card.tool in ctx.tools:
+            _build(registry.EFFECTS["contact"], card, ctx, problems, effects)
     for name in registry.cards("effect", "step"):  # step settings (damping, bulk viscosity), built when a step asks
         ctx.path = ("steps",)
         _build(registry.EFFECTS[name], [getattr(s, name) for s in deck.steps], ctx, problems, effects)
@@ -334,5 +349,8 @@ def compile_deck(deck: Deck, base: Path = Path(".")) -> Problem:
     if problems:
         raise CompileError(problems)
     steps = plan_steps(deck, groups, mass, effects)
+    problems = [(getattr(e, "path", ()), m) for e in effects for m in e.check_plan(steps)]
+    if problems:
+        raise CompileError(problems)
     return Problem(deck, mesh.X, mesh.cells, groups, effects, mesh.node_sets, mass, steps, reactions, measures,
                    rotations)

@@ -371,9 +371,13 @@ def cross_reference_problems(deck: Deck) -> list[tuple[tuple, str, str]]:
         if c.tool not in deck.tools:
             out.append((("contact", i, "tool"), unknown_name("tool", c.tool, deck.tools), "error"))
     for name, tool in deck.tools.items():
-        if tool.motion is not None and tool.motion.amplitude not in names:
-            out.append((("tools", name, "motion", "amplitude"), unknown_name("amplitude", tool.motion.amplitude,
+        if tool.motion is not None and tool.motion.amplitude_name not in names:
+            out.append((("tools", name, "motion", "amplitude"), unknown_name("amplitude", tool.motion.amplitude_name,
                                                                              names), "error"))
+    used = {c.tool for c in deck.contact}
+    for name in deck.tools:
+        if name not in used:
+            out.append((("tools", name), f"tool '{name}' is in no `contact` pair, so nothing touches it", "warning"))
     measures = [m.name for m in deck.output.measures]
     for i, lim in enumerate(deck.checks.limits):
         if lim.measure not in measures:

@@ -64,6 +64,16 @@ class Effect:
     def rest_dt(self, rho: np.ndarray) -> np.ndarray | None:
         return None
 
+    def check_plan(self, plans) -> list[str]:
+        """Problems that only the step plan reveals (masses after mass scaling, a tool's speed in each step): plain
+        messages, reported by the compiler at the effect's deck path (``path``) as input errors."""
+        return []
+
+    def describe(self, plan) -> str | None:
+        """One line for ``fdeck info`` (what the effect acts on, its laws, its step bound with the step plan ``plan``),
+        or None when its name says enough."""
+        return None
+
     def surfaces(self) -> list[tuple[str, np.ndarray, np.ndarray]]:
         """Surfaces of the effect's own bodies to draw beside the blank in every frame (a rigid tool): a list of
         (name, current points (n, 3) [mm], triangles (m, 3) int, 0-based); empty for effects without a body."""

@@ -1,10 +1,14 @@
-"""Node-to-rigid-surface penalty contact with Coulomb friction (MODELS 7), against analytic tools.
+"""Node-to-rigid-surface penalty contact with Coulomb friction (MODELS 7), against analytic or triangulated tools.
+
+Three questions, three places: where the tool is and how it moves (``effects.tool``), how far a node is from it and
+along which normal (``tools.analytic`` closed forms, or ``tools.triangulated``: a grid broad phase built once in the
+tool's frame and a closest-point narrow phase), and what force follows (``contact_forces`` below).
 
 Per blank node i: its tributary area A_i, for hexahedra the outward vector area a_i of the exterior faces around it
 (a quarter of each face's area vector) projected on the contact normal, A_i = max(0, -a_i . n), so that a corner
 node of a block resting on a plane carries only its share of the bottom face; for shells a quarter of each element's
 area, on both faces, with half the thickness as offset o_i.
-gap g = d(x - u) - o with d the tool's signed distance (``physics.tools.analytic``) and u the tool's translation;
+gap g = d(x - u) - o with d the tool's signed distance and u the tool's translation;
 overclosure h = -g. Normal force f_n = p(h) A n, from the linear law p = k h or the exponential law of MODELS 7
 continued linearly beyond its stiffness cap. Its energy A int p dh is stored (``contact_energy``), so f_n = -dE/dx and
 the normal contact is conservative on a plane (on a curved tool A_i varies with n, a term the force omits).
@@ -13,8 +17,10 @@ Friction: an elastic stick spring of stiffness k_t = stick_stiffness * (dp/dh)_m
 force; the trial force f_t - k_t du_t (du_t the increment of the node's displacement relative to the tool, in the
 tangent plane) is returned to mu_d f_n when it exceeds mu_s f_n (mu_d while sliding), a backward-Euler return map
 (Simo & Hughes, Computational Inelasticity, 1998, ch. 1, the 1-D elastoplastic analogue). The spring's energy
-|f_t|^2 / (2 k_t) is stored; the energy the return map removes, |f_t| times the plastic slip, is dissipated
-(``friction_dissipation``), as is the spring's energy when a node leaves contact.
+|f_t|^2 / (2 k_t) is stored; the energy the return map removes, the mean of the old and new tangential force (along
+the slip) times the plastic slip, is dissipated
+(``friction_dissipation``), as is the spring's energy when a node leaves contact (with the work of its force falling
+to zero): the booking follows the trapezoidal work the engine integrates, so the balance closes when f_n varies.
 
 The tool's work on the blank is integrated by the trapezoidal rule on its translation increments
 (``tool_work_<tool>``); its force on the blank and its displacement are history columns. With the blank's own work of
@@ -24,8 +30,10 @@ on its lumped mass m; the effect bounds the step by sqrt(m / k) = 1 / omega, hal
 that the node stays stable with the element stiffness added (up to three times the penalty's) and the penalty's
 ringing, which the ledger sees at the dt^2 omega^2 / 8 level of central differences, stays small.
 
-Tools move by a prescribed translation only (no rotation, no force control yet); a tool that moves more than its
-nodes' offsets in one cycle against a thin shell could pass through it: the step bound does not prevent that.
+Tunnelling: a shell node that crosses the tool surface in one cycle would be pushed out on the wrong face, and a
+node that travels beyond a triangulated tool's search distance is no longer seen. The effect therefore also bounds
+the step by half that distance over the tool's largest speed in the step (sub-stepping the whole model rather than
+letting a node pass through unseen); ``fdeck info`` prints both bounds. Tools translate only (no rotation).
 """
 
 from __future__ import annotations
@@ -39,7 +47,8 @@ from fdeck.compile.errors import CompileError
 from fdeck.engine.effect import Effect
 from fdeck.engine.ledger import DISSIPATED, STORED, VALUE, WORK, Term
 from fdeck.jit import njit, njit_parallel, prange
-from fdeck.physics.tools import analytic
+from fdeck.physics.effects.tool import MESH
+from fdeck.physics.tools import analytic, triangulated
 from fdeck.registry import EffectKind, register_effect
 
 LINEAR, EXPONENTIAL = 0, 1
@@ -100,20 +109,41 @@ def max_slope(law) -> float:
 
 
 @njit_parallel
-def contact_forces(x, nodes, area, vec, offset, two_sided, kind, shape, u, law, kt, mu_s, mu_d, x_prev, u_prev,
+def query_analytic(x, nodes, kind, shape, u, d, nrm):
+    """Signed distance d (k,) [mm] and outward normal nrm (k, 3) of every contact node to an analytic tool
+    translated by u (3,)."""
+    for i in prange(nodes.shape[0]):
+        a = nodes[i]
+        d[i], nrm[i, 0], nrm[i, 1], nrm[i, 2] = analytic.distance(kind, shape, x[a, 0] - u[0], x[a, 1] - u[1],
+                                                                  x[a, 2] - u[2])
+
+
+@njit_parallel
+def query_mesh(x, nodes, P, T, face_n, edge_n, vert_n, lo, h, dims, start, items, r, u, d, nrm):
+    """The same against a triangulated tool (``tools.triangulated``; d = r, normal 0 for a node farther than r)."""
+    for i in prange(nodes.shape[0]):
+        a = nodes[i]
+        d[i], nrm[i, 0], nrm[i, 1], nrm[i, 2] = triangulated.distance(
+            P, T, face_n, edge_n, vert_n, lo, h, dims, start, items, r, x[a, 0] - u[0], x[a, 1] - u[1],
+            x[a, 2] - u[2])
+
+
+@njit_parallel
+def contact_forces(x, nodes, dist, nrm, area, vec, offset, two_sided, u, law, kt, mu_s, mu_d, x_prev, u_prev,
                    ft, status, f, gap, pressure, energy, dissipated):
     """Contact forces of every contact node (one node per iteration: no race, same bits on any thread count).
 
-    x (n_node, 3) positions; nodes (k,) node indices; area (k,) [mm^2] of shell nodes; vec (k, 3) outward vector
-    area of solid nodes [mm^2]; offset (k,) [mm]; two_sided (k,) bool (shell nodes); kind, shape: the tool
-    surface; u (3,) tool translation, u_prev (3,) at the last call; law (8,); kt (k,) stick stiffness [N/mm];
-    x_prev (k, 3) node positions at the last call (updated); ft (k, 3) tangential force (updated); status (k,)
-    0 open, 1 stick, 2 slip (updated). Outputs f (k, 3) force of the tool on each node [N], gap, pressure (k,)
-    [mm, MPa], energy (k,) stored normal + stick energy [mJ], dissipated (k,) friction dissipation of this call [mJ].
+    x (n_node, 3) positions; nodes (k,) node indices; dist (k,), nrm (k, 3) signed distance and normal to the tool
+    (``query_*``); area (k,) [mm^2] of shell nodes; vec (k, 3) outward vector area of solid nodes [mm^2]; offset (k,)
+    [mm]; two_sided (k,) bool (shell nodes); u (3,) tool translation, u_prev (3,) at the last call; law (8,); kt (k,)
+    stick stiffness [N/mm]; x_prev (k, 3) node positions at the last call (updated); ft (k, 3) tangential force
+    (updated); status (k,) 0 open, 1 stick, 2 slip (updated). Outputs f (k, 3) force of the tool on each node [N],
+    gap, pressure (k,) [mm, MPa], energy (k,) stored normal + stick energy [mJ], dissipated (k,) friction dissipation
+    of this call [mJ].
     """
     for i in prange(nodes.shape[0]):
         a = nodes[i]
-        d, n0, n1, n2 = analytic.distance(kind, shape, x[a, 0] - u[0], x[a, 1] - u[1], x[a, 2] - u[2])
+        d, n0, n1, n2 = dist[i], nrm[i, 0], nrm[i, 1], nrm[i, 2]
         if two_sided[i] and d < 0.0:
             d, n0, n1, n2 = -d, -n0, -n1, -n2
         g = d - offset[i]
@@ -138,11 +168,16 @@ def contact_forces(x, nodes, area, vec, offset, two_sided, kind, shape, u, law, 
             state = 1
             if trial > limit:
                 slide = mu_d * fn
-                lost = slide * (trial - slide) / kt[i]  # |f_t| x plastic slip
+                # the mean of the old and new tangential force times the plastic slip (trial - slide) / kt: the
+                # engine books the node's work with the mean force, so this closes the balance when f_n varies
+                along = (ft[i, 0] * t0 + ft[i, 1] * t1 + ft[i, 2] * t2) / trial  # old force along the trial
+                lost = (trial - slide) * (slide + along) / (2.0 * kt[i])
                 t0, t1, t2 = t0 * slide / trial, t1 * slide / trial, t2 * slide / trial
                 state = 2
         elif e_old > 0.0:
-            lost = e_old  # the stick spring lets go: its energy is not recovered
+            # the node leaves contact and its stick spring lets go: the spring's energy is not recovered, and the
+            # force falling from f_t to 0 over du does the mean-force work -f_t . du / 2 as well
+            lost = e_old - 0.5 * (ft[i, 0] * du0 + ft[i, 1] * du1 + ft[i, 2] * du2)
         elif fn > 0.0:
             state = 1
         ft[i, 0], ft[i, 1], ft[i, 2] = t0, t1, t2
@@ -155,71 +190,124 @@ def contact_forces(x, nodes, area, vec, offset, two_sided, kind, shape, u, law, 
 
 
 class RigidContact(Effect):
-    """Blank nodes against one analytic tool moving by a prescribed translation; see the module docstring."""
+    """Blank nodes against one rigid tool (``effects.tool.RigidTool``); see the module docstring."""
 
     forces = "internal"
-    moves = True
 
-    def __init__(self, tool_name, nodes, area, vec, offset, two_sided, kind, shape, motion, law, friction, X):
-        self.name, self.tool = f"contact:{tool_name}", tool_name
+    def __init__(self, tool, nodes, area, vec, offset, two_sided, law, friction, X, search):
+        self.name, self.tool = f"contact:{tool.tool}", tool
         self.nodes, self.offset, self.two_sided = nodes, offset, two_sided
         self.vec = np.ascontiguousarray(vec)
         self.area = np.where(two_sided, area, np.linalg.norm(vec, axis=1))  # bound of the projected area
-        self.kind, self.shape, self.motion, self.law = kind, shape, motion, law
+        self.law = law
         k = len(nodes)
         stick = friction.stick_stiffness if friction is not None else 0.0
         self.kt = stick * max_slope(law) * area
         self.k_max = max(1.0, stick) * max_slope(law) * area  # (k,) largest nodal contact stiffness [N/mm]
+        tool.load_stiffness += float(self.k_max.sum())
         self.mu_s = friction.static if friction is not None else 0.0
         self.mu_d = (friction.dynamic if friction.dynamic is not None else friction.static) if friction else 0.0
-        self.u, self.u_prev, self.u_force = self.motion(0.0), np.zeros(3), np.zeros(3)
+        self.search = search
+        self.grid = None if tool.kind != MESH else triangulated.build(*tool.mesh, search)
+        self.u_force = np.array(tool.u)  # tool translation at the last call
         self.x_prev = np.ascontiguousarray(X[nodes])
         self.ft, self.status = np.zeros((k, 3)), np.zeros(k, np.int64)
+        self.dist, self.nrm = np.zeros(k), np.zeros((k, 3))
         self.f, self.gap, self.pressure = np.zeros((k, 3)), np.zeros(k), np.zeros(k)
         self.energy, self.dissipated = np.zeros(k), np.zeros(k)
         self.force = np.zeros(3)  # total force of the tool on the blank at the last call [N]
         self.work = self.friction = 0.0
-        self.dt = math.inf
+        self.dt_spring = self.dt_travel = self.dt = math.inf
+        name = tool.tool
         self.terms = (Term("contact_energy", STORED), Term("friction_dissipation", DISSIPATED),
-                      Term(f"tool_work_{tool_name}", WORK),
-                      *(Term(f"tool_{tool_name}_force_{c}", VALUE) for c in "xyz"),
-                      *(Term(f"tool_{tool_name}_displacement_{c}", VALUE) for c in "xyz"))
+                      Term(f"tool_work_{name}", WORK), *(Term(f"tool_{name}_force_{c}", VALUE) for c in "xyz"))
+
+    @property
+    def travel_limit(self) -> float:
+        """Largest relative travel of a node and the tool in one cycle that cannot carry a node through the
+        surface unseen [mm]: a shell node (two-sided) flips side once it crosses its offset, a node against a
+        triangulated tool is lost beyond the search distance; half of it, for margin."""
+        lim = math.inf
+        if self.two_sided.any():
+            lim = float(self.offset[self.two_sided].min())
+        if self.grid is not None:
+            lim = min(lim, self.search)
+        return 0.5 * lim
 
     def begin_step(self, index, plan):
         m = plan.mass[self.nodes]
         touching = self.k_max > 0.0
-        self.dt = float(np.min(np.sqrt(m[touching] / self.k_max[touching]))) if touching.any() else math.inf
+        self.dt_spring = float(np.min(np.sqrt(m[touching] / self.k_max[touching]))) if touching.any() else math.inf
+        speed = self.tool.speed_bound(plan.start, plan.start + plan.duration)
+        self.dt_travel = self.travel_limit / speed if speed > 0.0 else math.inf
+        self.dt = min(self.dt_spring, self.dt_travel)
 
-    def advance(self, t_next, dt, dt_avg):
-        self.u = self.motion(t_next)
+    def check_plan(self, plans) -> list[str]:
+        """A tool that a node can only catch up with after crossing its offset (a shell node) or the search distance
+        (a triangulated tool) would pass through whatever the step: the penalty spring k on the node's mass m stops
+        a relative speed v after a penetration v sqrt(m / k). Refused, with the stiffness that would do."""
+        limit = np.where(self.two_sided, self.offset, self.search if self.grid is not None else np.inf)
+        out = []
+        for plan in plans:
+            speed = self.tool.speed_bound(plan.start, plan.start + plan.duration)
+            if speed == 0.0 or not np.isfinite(limit).any():
+                continue
+            depth = speed * np.sqrt(plan.mass[self.nodes] / self.k_max)
+            ratio = depth / limit
+            worst = int(np.argmax(ratio))
+            if ratio[worst] > 1.0:
+                out.append(f"tool '{self.tool.tool}' moves at up to {speed:.4g} mm/s in step '{plan.name}': the contact "
+                           f"stiffness stops a node only after a penetration v sqrt(m/k) = {depth[worst]:.3g} mm, "
+                           f"beyond the {limit[worst]:.3g} mm it may cross (node {self.nodes[worst] + 1}); it would "
+                           f"pass through. Raise the normal stiffness to at least "
+                           f"{max_slope(self.law) * ratio[worst] ** 2:.3g} MPa/mm or slow the tool")
+        return out
+
+    def query(self, x, u):
+        """Fill ``dist`` and ``nrm`` for positions x and tool translation u."""
+        if self.grid is None:
+            query_analytic(x, self.nodes, self.tool.shape_kind, self.tool.params, u, self.dist, self.nrm)
+        else:
+            query_mesh(x, self.nodes, *self.grid.arrays(), u, self.dist, self.nrm)
 
     def add_force(self, t, x, v, f):
-        u_call = np.array(self.u)
-        contact_forces(x, self.nodes, self.area, self.vec, self.offset, self.two_sided, self.kind, self.shape, u_call,
-                       self.law, self.kt, self.mu_s, self.mu_d, self.x_prev, self.u_force, self.ft, self.status, self.f,
-                       self.gap, self.pressure, self.energy, self.dissipated)
+        tool = self.tool
+        if tool.mode == "force":  # a force-driven tool's speed is known only as it runs
+            self.dt = min(self.dt_spring, self.travel_limit / abs(tool.V) if tool.V != 0.0 else math.inf)
+        u_call = np.array(tool.u)
+        self.query(x, u_call)
+        contact_forces(x, self.nodes, self.dist, self.nrm, self.area, self.vec, self.offset, self.two_sided, u_call,
+                       self.law, self.kt, self.mu_s, self.mu_d, self.x_prev, self.u_force, self.ft, self.status,
+                       self.f, self.gap, self.pressure, self.energy, self.dissipated)
         force = self.f.sum(axis=0)
         self.work += 0.5 * float(np.dot(self.force + force, u_call - self.u_force))
         self.force, self.u_force = force, u_call
+        tool.load += force
         self.friction += float(self.dissipated.sum())
         np.subtract.at(f, self.nodes, self.f)  # internal forces carry the resisting sign
 
     def stable_dt(self):
         return self.dt
 
-    def term_values(self):
-        return (float(self.energy.sum()), self.friction, self.work, *self.force.tolist(), *self.u.tolist())
+    def describe(self, plan) -> str:
+        self.begin_step(0, plan)
+        law = ("linear, " if self.law[0] == LINEAR else "exponential, capped at ") + f"{max_slope(self.law):g} MPa/mm"
+        friction = f"friction {self.mu_s:g}/{self.mu_d:g} (static/dynamic)" if self.mu_s > 0 else "frictionless"
+        travel = (f", travel bound {self.travel_limit:.3g} mm per cycle -> {self.dt_travel:.4g} s"
+                  if math.isfinite(self.dt_travel) else "")
+        search = f", search distance {self.search:.3g} mm ({len(self.grid.T)} triangles)" if self.grid else ""
+        return (f"contact with tool '{self.tool.tool}': {len(self.nodes)} blank nodes, {law}, {friction}, "
+                f"step bound sqrt(m/k) = {self.dt_spring:.4g} s{travel}{search}")
 
-    def initial_penetrations(self) -> np.ndarray:
+    def term_values(self):
+        return (float(self.energy.sum()), self.friction, self.work, *self.force.tolist())
+
+    def initial_penetrations(self, X) -> np.ndarray:
         """Indices of the contact nodes that start inside the tool (gap < 0 at rest, before any motion)."""
-        out = []
-        for i, a in enumerate(self.nodes):
-            x = self.x_prev[i] - self.u
-            d = analytic.distance(self.kind, self.shape, x[0], x[1], x[2])[0]
-            d = abs(d) if self.two_sided[i] else d
-            if d - self.offset[i] < -1e-9 * max(1.0, abs(self.offset[i])):
-                out.append(a)
-        return np.asarray(out, np.int64)
+        self.query(X, np.array(self.tool.u))
+        d = np.where(self.two_sided, np.abs(self.dist), self.dist)
+        inside = d - self.offset < -1e-9 * np.maximum(1.0, np.abs(self.offset))
+        return self.nodes[inside]
 
 
 def tributary(ctx) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -246,28 +334,21 @@ def tributary(ctx) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
 
 
 def build(card: Contact, ctx) -> RigidContact:
-    tools = ctx.deck.tools
-    if card.tool not in tools:
-        from fdeck.deck.errors import unknown_name
-
-        raise CompileError([(ctx.path + ("tool",), unknown_name("tool", card.tool, tools))])
-    tool = tools[card.tool]
+    tool = ctx.tools[card.tool]
     area, vec, offset, two_sided = tributary(ctx)
     nodes = ctx.node_set(card.nodes) if card.nodes is not None else np.nonzero(area > 0)[0]
     nodes = nodes[area[nodes] > 0]
     if len(nodes) == 0:
         raise CompileError([(ctx.path + ("nodes",), "no node of this set lies on the blank's exterior")])
-    kind, shape = analytic.pack(tool.surface)
-    if tool.motion is None:
-        motion = lambda t: np.zeros(3)  # noqa: E731
-    else:
-        direction = np.asarray(tool.motion.direction, float)
-        direction = direction / np.linalg.norm(direction)
-        amp, value = ctx.amplitude(tool.motion.amplitude), tool.motion.value
-        motion = lambda t: value * amp(t) * direction  # noqa: E731
-    effect = RigidContact(card.tool, np.ascontiguousarray(nodes, np.int64), area[nodes], vec[nodes], offset[nodes],
-                          two_sided[nodes], kind, shape, motion, pack_law(card.normal), card.friction, ctx.X)
-    inside = effect.initial_penetrations()
+    law = pack_law(card.normal)
+    search = card.search_distance
+    if search is None:
+        faces = ctx.surface["faces"]
+        edge = max(float(np.linalg.norm(ctx.X[faces] - ctx.X[np.roll(faces, 1, axis=1)], axis=2).max()), 0.0)
+        search = float(offset[nodes].max()) + (law[2] if law[0] == EXPONENTIAL else 0.0) + edge
+    effect = RigidContact(tool, np.ascontiguousarray(nodes, np.int64), area[nodes], vec[nodes], offset[nodes],
+                          two_sided[nodes], law, card.friction, ctx.X, search)
+    inside = effect.initial_penetrations(ctx.X)
     if len(inside):
         raise CompileError([(ctx.path, f"{len(inside)} blank nodes start inside tool '{card.tool}' (initial "
                              f"penetration), nodes (1-based, in mesh order) {(inside[:10] + 1).tolist()}")])
