@@ -130,7 +130,7 @@ def query_mesh(x, nodes, P, T, face_n, edge_n, vert_n, lo, h, dims, start, items
 
 @njit_parallel
 def contact_forces(x, nodes, dist, nrm, area, vec, offset, two_sided, u, law, kt, mu_s, mu_d, x_prev, u_prev,
-                   ft, status, f, gap, pressure, energy, dissipated):
+                   ft, status, f, gap, pressure, energy, dissipated, f_int):
     """Contact forces of every contact node (one node per iteration: no race, same bits on any thread count).
 
     x (n_node, 3) positions; nodes (k,) node indices; dist (k,), nrm (k, 3) signed distance and normal to the tool
@@ -139,7 +139,8 @@ def contact_forces(x, nodes, dist, nrm, area, vec, offset, two_sided, u, law, kt
     stick stiffness [N/mm]; x_prev (k, 3) node positions at the last call (updated); ft (k, 3) tangential force
     (updated); status (k,) 0 open, 1 stick, 2 slip (updated). Outputs f (k, 3) force of the tool on each node [N],
     gap, pressure (k,) [mm, MPa], energy (k,) stored normal + stick energy [mJ], dissipated (k,) friction dissipation
-    of this call [mJ].
+    of this call [mJ]; f is also subtracted from the engine's internal forces f_int (n_node, 3) (resisting sign; the
+    nodes of a pair are distinct, so the writes do not race).
     """
     for i in prange(nodes.shape[0]):
         a = nodes[i]
@@ -183,6 +184,9 @@ def contact_forces(x, nodes, dist, nrm, area, vec, offset, two_sided, u, law, kt
         ft[i, 0], ft[i, 1], ft[i, 2] = t0, t1, t2
         status[i] = state if fn > 0.0 else 0
         f[i, 0], f[i, 1], f[i, 2] = fn * n0 + t0, fn * n1 + t1, fn * n2 + t2
+        f_int[a, 0] -= f[i, 0]
+        f_int[a, 1] -= f[i, 1]
+        f_int[a, 2] -= f[i, 2]
         gap[i], pressure[i] = g, p
         e_t = (t0 * t0 + t1 * t1 + t2 * t2) / (2.0 * kt[i]) if kt[i] > 0.0 else 0.0
         energy[i] = A * e_n + e_t
@@ -278,13 +282,12 @@ class RigidContact(Effect):
         self.query(x, u_call)
         contact_forces(x, self.nodes, self.dist, self.nrm, self.area, self.vec, self.offset, self.two_sided, u_call,
                        self.law, self.kt, self.mu_s, self.mu_d, self.x_prev, self.u_force, self.ft, self.status,
-                       self.f, self.gap, self.pressure, self.energy, self.dissipated)
+                       self.f, self.gap, self.pressure, self.energy, self.dissipated, f)
         force = self.f.sum(axis=0)
         self.work += 0.5 * float(np.dot(self.force + force, u_call - self.u_force))
         self.force, self.u_force = force, u_call
         tool.load += force
         self.friction += float(self.dissipated.sum())
-        np.subtract.at(f, self.nodes, self.f)  # internal forces carry the resisting sign
 
     def stable_dt(self):
         return self.dt

@@ -1,0 +1,136 @@
+"""Forming results as pictures: the formed blank seen from above (or from the side), coloured by a cell field.
+
+    python studies/forming.py render RESULT_DIR OUT.png [--field shear_angle] [--view top|side] [--title T]
+    python studies/forming.py force RESULT_DIR... OUT.png [--tool punch]   # punch force against stroke
+
+`render` reads the last blank frame of a run's `.pvd` (the blank is part 0; tools are other parts), draws every
+element as the polygon of its nodes projected on the view plane (their 2-D convex hull), farthest first, so the
+visible face of a hexahedral stack or of a shell wins, and colours it by the cell field (the fabric laws' shear
+angle in degrees by default). `force` plots the history's `tool_<tool>_force_z` against the tool's travel.
+"""
+
+from __future__ import annotations
+
+import argparse
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+
+VIEWS = {"top": (0, 1, 2), "side": (0, 2, 1)}  # (horizontal, vertical, depth) axes of the picture
+
+
+def last_blank_frame(result_dir: Path) -> Path:
+    """Path of the blank's (part 0) last VTU frame listed in the run's .pvd."""
+    pvd = next(Path(result_dir).glob("*.pvd"))
+    frames = [d for d in ET.parse(pvd).getroot().iter("DataSet") if d.get("part", "0") == "0"]
+    return pvd.parent / frames[-1].get("file")
+
+
+def hull(points: np.ndarray) -> np.ndarray:
+    """Convex hull of 2-D points (k, 2), counter-clockwise (monotone chain)."""
+    pts = sorted(set(map(tuple, np.round(points, 12))))
+    if len(pts) < 3:
+        return np.array(pts)
+
+    def turn(o, a, b):  # z of (a - o) x (b - o)
+        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+
+    def half(seq):
+        out = []
+        for p in seq:
+            while len(out) >= 2 and turn(out[-2], out[-1], p) <= 0:
+                out.pop()
+            out.append(p)
+        return out
+
+    lower, upper = half(pts), half(pts[::-1])
+    return np.array(lower[:-1] + upper[:-1])
+
+
+def render(result_dir, png, field: str = "shear_angle", view: str = "top", title: str | None = None,
+           limits: tuple[float, float] | None = None) -> dict:
+    """Draw the final blank coloured by ``field``; returns {min, max, mean} of the field over the drawn cells."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import meshio
+    from matplotlib.collections import PolyCollection
+
+    mesh = meshio.read(last_blank_frame(Path(result_dir)))
+    x = mesh.points + (mesh.point_data["displacement"] if "displacement" in mesh.point_data else 0.0)
+    h, v, d = VIEWS[view]
+    polys, values, depth = [], [], []
+    for k, block in enumerate(mesh.cells):
+        data = mesh.cell_data[field][k] if field in mesh.cell_data else np.full(len(block.data), np.nan)
+        data = np.asarray(data, float).reshape(len(block.data), -1)[:, 0]
+        for conn, val in zip(block.data, data):
+            p = x[conn]
+            polys.append(hull(p[:, [h, v]]))
+            values.append(val)
+            depth.append(p[:, d].mean())
+    order = np.argsort(depth)  # farthest first: the visible side is drawn last
+    values = np.asarray(values)[order]
+    fig, ax = plt.subplots(figsize=(6.4, 5.4))
+    coll = PolyCollection([polys[i] for i in order], array=values, cmap="viridis", edgecolors="k", linewidths=0.1)
+    if limits is not None:
+        coll.set_clim(*limits)
+    ax.add_collection(coll)
+    ax.autoscale_view()
+    ax.set_aspect("equal")
+    ax.set_xlabel("xyz"[h] + " [mm]")
+    ax.set_ylabel("xyz"[v] + " [mm]")
+    fig.colorbar(coll, ax=ax, label=field.replace("_", " ") + (" [deg]" if "angle" in field else ""))
+    ax.set_title(title or Path(result_dir).name)
+    fig.tight_layout()
+    Path(png).parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(png, dpi=130)
+    plt.close(fig)
+    finite = values[np.isfinite(values)]
+    return {"min": float(finite.min()), "max": float(finite.max()), "mean": float(finite.mean())} if len(finite) \
+        else {}
+
+
+def force(result_dirs, png, tool: str = "punch") -> None:
+    """Force of ``tool`` on the blank (z component, sign so that pressing is positive) against its travel."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from fdeck.io.history import read_history
+
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for r in result_dirs:
+        hist = read_history(Path(r) / "history.csv")
+        ax.plot(-hist[f"tool_{tool}_displacement_z"], -hist[f"tool_{tool}_force_z"], label=Path(r).name)
+    ax.set_xlabel(f"{tool} travel [mm]")
+    ax.set_ylabel(f"{tool} force [N]")
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(png, dpi=130)
+    plt.close(fig)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    r = sub.add_parser("render")
+    r.add_argument("result_dir")
+    r.add_argument("png")
+    r.add_argument("--field", default="shear_angle")
+    r.add_argument("--view", default="top", choices=sorted(VIEWS))
+    r.add_argument("--title")
+    f = sub.add_parser("force")
+    f.add_argument("paths", nargs="+", help="result folders, then the PNG")
+    f.add_argument("--tool", default="punch")
+    a = ap.parse_args()
+    if a.cmd == "render":
+        print(render(a.result_dir, a.png, a.field, a.view, a.title))
+    else:
+        force(a.paths[:-1], a.paths[-1], a.tool)
+
+
+if __name__ == "__main__":
+    main()
