@@ -1,8 +1,9 @@
 """Double-dome forming decks (decks/forming/double_dome_*.yaml): the coarse 0/90 deck run through the CLI, its
 history checked against independent references (energy conservation, contact kinematics, the die geometry).
 
-One run of about 50 s on one core (module fixture); the other decks are only validated (their runs are minutes to
-hours, measured by hand, see the decks' comments).
+One run of about 2 minutes on one core (module fixture), in the nightly tier (`pytest -m nightly`): over CI's
+budget, and the coarse deck does not yet pass its quasi-static check (see the xfail); every deck is validated in
+the default run.
 """
 
 from __future__ import annotations
@@ -43,6 +44,7 @@ def test_decks_validate():
     assert r.returncode == 0, r.stdout + r.stderr
 
 
+@pytest.mark.nightly
 def test_coarse_runs_to_the_end_with_energy_conserved(run):
     """Requirement: the coarse 0/90 deck completes (exit 0, or 3 for a failed check only) and its energy balance,
     recomputed from the history columns (kinetic + internal (which holds the contact energy) + damping + friction
@@ -58,6 +60,7 @@ def test_coarse_runs_to_the_end_with_energy_conserved(run):
     assert np.abs(bal - h["energy_balance_error"]).max() / scale < 1e-6
 
 
+@pytest.mark.nightly
 def test_punch_force_zero_before_contact_and_pushing_after(run):
     """Requirement: the punch exerts no force while its gap to the blank exceeds the law's clearance c0 (the
     punch starts GAP0 = 0.2 mm above the blank: travel below GAP0 - c0 = 0.1 mm, minus 0.02 mm for the blank's
@@ -74,6 +77,7 @@ def test_punch_force_zero_before_contact_and_pushing_after(run):
     assert h["tool_punch_force_z"][late].max() < -1.0
 
 
+@pytest.mark.nightly
 def test_draw_in_matches_the_die_profile(run):
     """Requirement: along the symmetry line y = 0 the warp (x) is nearly inextensible, so the free edge's draw-in
     at the end is AT LEAST the extra length the formed blank needs over the die there: arc length of the die
@@ -97,6 +101,7 @@ def test_draw_in_matches_the_die_profile(run):
     assert h["draw_in_x_max"][-1] >= draw - 1e-6  # the measure's largest edge draw-in covers this node's
 
 
+@pytest.mark.nightly
 @pytest.mark.xfail(strict=True, reason="coarse deck's 0.3 s stroke is not quasi-static (kinetic/internal 1-3 "
                    "mid-stroke); a passing run needs about 3 s (see the deck's comment)")
 def test_coarse_quasi_static(run):

@@ -206,3 +206,22 @@ def test_a_fast_tool_sub_steps_the_run_rather_than_pass_through_a_shell():
     assert res.dt_max <= 0.5 * 0.115 / v * (1 + 1e-12)
     travel = v * 1.5e-4  # 3 mm: the plane passes z = 0 at 0.5e-4 s and pushes the plate 2 mm down
     assert h["uz"][-1] < -(travel - 1.0) * 0.9
+
+
+def test_a_point_behind_an_open_sheet_rim_is_not_pushed_through_the_face():
+    """Requirement: for an open sheet (a 2 x 2 square, normals +z), a point under its face is inside (d = -depth,
+    exact) and so is a point straight under a rim edge, while a point that went round its rim (closest to a rim edge
+    or corner, below the sheet and beyond it) is far (d = r):
+    pushing it back through the face would create energy (a blank bulging over a holder's opening edge)."""
+    P = np.array([[0, 0, 0], [2, 0, 0], [2, 2, 0], [0, 2, 0]], float)
+    T = np.array([[0, 1, 2], [0, 2, 3]])
+    r = 0.5
+    args = triangulated.build(P, T, r).arrays()
+    assert triangulated.distance(*args, 1.0, 0.7, -0.1)[0] == pytest.approx(-0.1, abs=1e-15)
+    assert triangulated.distance(*args, 1.0, 0.7, 0.2)[0] == pytest.approx(0.2, abs=1e-15)
+    assert triangulated.distance(*args, 2.1, 1.0, -0.05)[0] == r  # beyond the x = 2 rim edge, below
+    assert triangulated.distance(*args, -0.1, -0.1, -0.05)[0] == r  # beyond the corner, below
+    assert triangulated.distance(*args, 2.1, 1.0, 0.05)[0] == pytest.approx(math.hypot(0.1, 0.05), abs=1e-15)
+    # straight under the rim (a node on the symmetry plane of a quarter model under a quarter tool's open side):
+    # penetrated, not gone round
+    assert triangulated.distance(*args, 2.0, 1.0, -0.05)[0] == pytest.approx(-0.05, abs=1e-15)

@@ -15,6 +15,9 @@ OUT = Path(__file__).resolve().parent / "tools"
 H = 4.0            # plan edge on curved parts [mm]: chord error <= 4^2 / (8 * 12.6) = 0.16 mm on the punch fillet
 TOOLS = {
     "double_dome_punch.stl": (double_dome, dict(part="punch", h=H), 65.0),
+    # the whole punch for the quarter decks: a quarter punch is closed by caps on the symmetry planes, which a blank
+    # node on those planes would take for the nearest face (distance 0, normal across the plane)
+    "double_dome_punch_whole.stl": (double_dome, dict(part="punch", h=H, quarter=False), 65.0),
     "double_dome_die.stl": (double_dome, dict(part="die", h=H), 0.0),
     "double_dome_holder.stl": (double_dome, dict(part="holder", h=H), 0.0),
     "tetrahedron_punch.stl": (tetrahedron, dict(part="punch", h=H), 65.0),

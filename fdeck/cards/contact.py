@@ -177,7 +177,9 @@ class Contact(Card):
     friction: Friction | None = Field(None, description="Coulomb friction; none = frictionless.")
     search_distance: float | None = Field(None, gt=0.0, description="Triangulated tools: how far from the surface "
                                           "a node is looked for [mm]; default the largest shell offset plus the "
-                                          "exponential law's clearance plus the blank's largest surface edge.")
+                                          "exponential law's clearance plus a quarter of the blank's largest surface "
+                                          "edge (the step bound keeps a tool from travelling half of it in one "
+                                          "cycle, and a penalty that lets a node sink deeper is refused).")
 
 
 register_card(CardEntry("tool", Tool, "effect", "tools"))

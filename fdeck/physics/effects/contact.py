@@ -119,12 +119,12 @@ def query_analytic(x, nodes, kind, shape, u, d, nrm):
 
 
 @njit_parallel
-def query_mesh(x, nodes, P, T, face_n, edge_n, vert_n, lo, h, dims, start, items, r, u, d, nrm):
+def query_mesh(x, nodes, P, T, face_n, edge_n, vert_n, rim_e, rim_v, lo, h, dims, start, items, r, u, d, nrm):
     """The same against a triangulated tool (``tools.triangulated``; d = r, normal 0 for a node farther than r)."""
     for i in prange(nodes.shape[0]):
         a = nodes[i]
         d[i], nrm[i, 0], nrm[i, 1], nrm[i, 2] = triangulated.distance(
-            P, T, face_n, edge_n, vert_n, lo, h, dims, start, items, r, x[a, 0] - u[0], x[a, 1] - u[1],
+            P, T, face_n, edge_n, vert_n, rim_e, rim_v, lo, h, dims, start, items, r, x[a, 0] - u[0], x[a, 1] - u[1],
             x[a, 2] - u[2])
 
 
@@ -348,7 +348,7 @@ def build(card: Contact, ctx) -> RigidContact:
     if search is None:
         faces = ctx.surface["faces"]
         edge = max(float(np.linalg.norm(ctx.X[faces] - ctx.X[np.roll(faces, 1, axis=1)], axis=2).max()), 0.0)
-        search = float(offset[nodes].max()) + (law[2] if law[0] == EXPONENTIAL else 0.0) + edge
+        search = float(offset[nodes].max()) + (law[2] if law[0] == EXPONENTIAL else 0.0) + 0.25 * edge
     effect = RigidContact(tool, np.ascontiguousarray(nodes, np.int64), area[nodes], vec[nodes], offset[nodes],
                           two_sided[nodes], law, card.friction, ctx.X, search)
     inside = effect.initial_penetrations(ctx.X)

@@ -12,7 +12,8 @@ Broad phase: a uniform grid in the tool's own frame (a rigid tool only translate
 triangle is listed in every cell that its bounding box, grown by the search radius r, overlaps; a point then finds
 every triangle within r of it in its own cell: one cell look-up and a handful of triangles per query, so a cycle
 costs O(blank nodes), whatever the number of facets. A point with no triangle within r is "far" (distance reported
-as r): the contact's step bound keeps a node from travelling that far in one cycle.
+as r): the contact's step bound keeps a node from travelling that far in one cycle. A point behind the rim of an
+open sheet (closest to a boundary edge or vertex, on the back side) is far too: it went round the edge.
 """
 
 from __future__ import annotations
@@ -34,7 +35,8 @@ class Surface:
     """A triangulated surface ready for queries (all arrays C-contiguous, tool frame, mm).
 
     P (nv, 3) vertices; T (nt, 3) int64 triangles; face_n (nt, 3) unit normals; edge_n (nt, 3, 3) pseudonormal of
-    edge k (01, 12, 20) of each triangle; vert_n (nv, 3) vertex pseudonormals; grid: lo (3,) corner, h cell size,
+    edge k (01, 12, 20) of each triangle; vert_n (nv, 3) vertex pseudonormals; rim_e (nt, 3), rim_v (nv,) bool: the
+    edge or vertex lies on the rim of an open sheet (an edge of one triangle); grid: lo (3,) corner, h cell size,
     dims (3,) int64, start (n_cell + 1,) int64 and items (n_item,) int64 (CSR cell -> triangles); r search radius.
     """
 
@@ -43,6 +45,8 @@ class Surface:
     face_n: np.ndarray
     edge_n: np.ndarray
     vert_n: np.ndarray
+    rim_e: np.ndarray
+    rim_v: np.ndarray
     lo: np.ndarray
     h: float
     dims: np.ndarray
@@ -51,8 +55,8 @@ class Surface:
     r: float
 
     def arrays(self) -> tuple:
-        return (self.P, self.T, self.face_n, self.edge_n, self.vert_n, self.lo, self.h, self.dims, self.start,
-                self.items, self.r)
+        return (self.P, self.T, self.face_n, self.edge_n, self.vert_n, self.rim_e, self.rim_v, self.lo, self.h,
+                self.dims, self.start, self.items, self.r)
 
 
 def read(path: Path, part: str | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -86,9 +90,10 @@ def read(path: Path, part: str | None = None) -> tuple[np.ndarray, np.ndarray]:
     return np.ascontiguousarray(P), np.ascontiguousarray(remap[T])
 
 
-def pseudonormals(P: np.ndarray, T: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(face normals (nt, 3), edge pseudonormals (nt, 3, 3), vertex pseudonormals (nv, 3)); raises ValueError on a
-    degenerate triangle or on an edge shared by more than two triangles."""
+def pseudonormals(P: np.ndarray, T: np.ndarray) -> tuple[np.ndarray, ...]:
+    """(face normals (nt, 3), edge pseudonormals (nt, 3, 3), vertex pseudonormals (nv, 3), rim edges (nt, 3) bool,
+    rim vertices (nv,) bool); raises ValueError on a degenerate triangle or on an edge shared by more than two
+    triangles."""
     a, b, c = P[T[:, 0]], P[T[:, 1]], P[T[:, 2]]
     cr = np.cross(b - a, c - a)
     area2 = np.linalg.norm(cr, axis=1)
@@ -116,14 +121,17 @@ def pseudonormals(P: np.ndarray, T: np.ndarray) -> tuple[np.ndarray, np.ndarray,
     np.add.at(acc, inv.ravel(), np.repeat(fn, 3, axis=0))
     en = acc[inv.ravel()]
     en /= np.maximum(np.linalg.norm(en, axis=1), 1e-300)[:, None]
-    return fn, np.ascontiguousarray(en.reshape(-1, 3, 3)), vn
+    rim_e = (counts[inv.ravel()] == 1).reshape(-1, 3)
+    rim_v = np.zeros(len(P), bool)
+    rim_v[edges[rim_e.ravel()].ravel()] = True
+    return fn, np.ascontiguousarray(en.reshape(-1, 3, 3)), vn, np.ascontiguousarray(rim_e), rim_v
 
 
 def build(P: np.ndarray, T: np.ndarray, r: float) -> Surface:
     """Query-ready surface with search radius r [mm]: pseudonormals and the grid (cell size at least r and the
     median edge length, grown until the grid has at most MAX_CELLS cells)."""
     P, T = np.ascontiguousarray(P, float), np.ascontiguousarray(T, np.int64)
-    fn, en, vn = pseudonormals(P, T)
+    fn, en, vn, rim_e, rim_v = pseudonormals(P, T)
     edge = np.linalg.norm(P[T[:, 1]] - P[T[:, 0]], axis=1)
     lo, hi = P.min(axis=0) - 1.01 * r, P.max(axis=0) + 1.01 * r
     h = max(r, float(np.median(edge)))
@@ -137,31 +145,34 @@ def build(P: np.ndarray, T: np.ndarray, r: float) -> Surface:
     i0 = np.clip(np.floor((tlo - lo) / h).astype(np.int64), 0, dims - 1)
     i1 = np.clip(np.floor((thi - lo) / h).astype(np.int64), 0, dims - 1)
     start, items = _fill_grid(i0, i1, dims)
-    return Surface(P, T, fn, en, vn, lo, h, dims, start, items, float(r))
+    return Surface(P, T, fn, en, vn, rim_e, rim_v, lo, h, dims, start, items, float(r))
 
 
 @njit
 def _fill_grid(i0, i1, dims):
     """CSR cell -> triangles from each triangle's cell range [i0, i1] (inclusive, (nt, 3) each); triangles in
     increasing order within a cell (so ties resolve the same way on any machine)."""
-    n_cell = dims[0] * dims[1] * dims[2]
-    count = np.zeros(n_cell + 1, np.int64)
-    for t in range(i0.shape[0]):
-        for i in range(i0[t, 0], i1[t, 0] + 1):
-            for j in range(i0[t, 1], i1[t, 1] + 1):
-                for k in range(i0[t, 2], i1[t, 2] + 1):
-                    count[(i * dims[1] + j) * dims[2] + k + 1] += 1
+    count = np.zeros(dims[0] * dims[1] * dims[2] + 1, np.int64)
+    _scan(i0, i1, dims, count, count, False)  # count[c + 1] = triangles of cell c
     start = np.cumsum(count)
     items = np.empty(start[-1], np.int64)
-    fill = start[:-1].copy()
+    _scan(i0, i1, dims, start[:-1].copy(), items, True)
+    return start, items
+
+
+@njit
+def _scan(i0, i1, dims, cursor, items, write):
+    """Visit every (triangle, cell) pair: count into cursor[c + 1], or write t at items[cursor[c]] and advance."""
     for t in range(i0.shape[0]):
         for i in range(i0[t, 0], i1[t, 0] + 1):
             for j in range(i0[t, 1], i1[t, 1] + 1):
                 for k in range(i0[t, 2], i1[t, 2] + 1):
                     c = (i * dims[1] + j) * dims[2] + k
-                    items[fill[c]] = t
-                    fill[c] += 1
-    return start, items
+                    if write:
+                        items[cursor[c]] = t
+                        cursor[c] += 1
+                    else:
+                        cursor[c + 1] += 1
 
 
 @njit
@@ -203,9 +214,11 @@ def closest_on_triangle(ax, ay, az, bx, by, bz, cx, cy, cz, px, py, pz):
 
 
 @njit
-def distance(P, T, face_n, edge_n, vert_n, lo, h, dims, start, items, r, x0, x1, x2):
+def distance(P, T, face_n, edge_n, vert_n, rim_e, rim_v, lo, h, dims, start, items, r, x0, x1, x2):
     """(d [mm], n0, n1, n2) signed distance and outward unit normal of the point (x0, x1, x2) in the tool's frame;
-    (r, 0, 0, 0) when no triangle lies within the search radius r."""
+    (r, 0, 0, 0) when no triangle lies within the search radius r, or when the point lies behind an open sheet's rim
+    and beyond it (closest to a rim edge or vertex, on the back side, off the rim's normal line): such a point has
+    gone round the sheet's edge, not through its face, and pushing it back through the face would create energy."""
     i = int(math.floor((x0 - lo[0]) / h))
     j = int(math.floor((x1 - lo[1]) / h))
     k = int(math.floor((x2 - lo[2]) / h))
@@ -227,15 +240,24 @@ def distance(P, T, face_n, edge_n, vert_n, lo, h, dims, start, items, r, x0, x1,
         return r, 0.0, 0.0, 0.0
     if rbest == FACE:
         p0, p1, p2 = face_n[tbest, 0], face_n[tbest, 1], face_n[tbest, 2]
+        rim = False
     elif rbest >= EDGE:
         e = rbest - EDGE
         p0, p1, p2 = edge_n[tbest, e, 0], edge_n[tbest, e, 1], edge_n[tbest, e, 2]
+        rim = rim_e[tbest, e]
     else:
         v = T[tbest, rbest - VERTEX]
         p0, p1, p2 = vert_n[v, 0], vert_n[v, 1], vert_n[v, 2]
+        rim = rim_v[v]
     dist = math.sqrt(best)
     r0, r1, r2 = x0 - q0, x1 - q1, x2 - q2
     if dist <= 1e-12 * h:  # on the surface: the pseudonormal is the normal
         return 0.0, p0, p1, p2
     sign = 1.0 if r0 * p0 + r1 * p1 + r2 * p2 >= 0.0 else -1.0
+    if rim and sign < 0.0:
+        # behind a rim: "far" only if the point is also beyond the rim within the sheet's plane (it went round the
+        # edge); straight behind it (a node on a symmetry plane under a quarter tool's rim) it has penetrated
+        rn = r0 * p0 + r1 * p1 + r2 * p2
+        if (r0 - rn * p0) ** 2 + (r1 - rn * p1) ** 2 + (r2 - rn * p2) ** 2 > 1e-12 * dist * dist:
+            return r, 0.0, 0.0, 0.0
     return sign * dist, sign * r0 / dist, sign * r1 / dist, sign * r2 / dist
