@@ -36,9 +36,9 @@ class RigidTool(Effect):
     forces = "internal"  # adds nothing to the blank: clears the contact pairs' load before they run
     moves = True
 
-    def __init__(self, name, card, amplitude, surface):
+    def __init__(self, name, card, amplitude, surface, extent):
         self.name, self.tool = f"tool:{name}", name
-        self.card = card
+        self.extent = extent  # (6,) lo, hi of the blank [mm]: where to facet an analytic tool for display
         mo = card.motion
         self.mode = "fixed" if mo is None else mo.kind
         d = np.asarray(mo.direction if mo is not None else (0.0, 0.0, -1.0), float)
@@ -125,10 +125,7 @@ def build_tool(name: str, card, ctx) -> RigidTool:
         kind, params = analytic.pack(s)
         surface = (ANALYTIC, kind, params, None)
     amp = ctx.amplitude(card.motion.amplitude_name) if card.motion is not None else (lambda t: 0.0)
-    tool = RigidTool(name, card, amp, surface)
-    lo, hi = ctx.X.min(axis=0), ctx.X.max(axis=0)
-    tool.extent = np.concatenate([lo, hi])  # where to facet an analytic tool for display
-    return tool
+    return RigidTool(name, card, amp, surface, np.concatenate([ctx.X.min(axis=0), ctx.X.max(axis=0)]))
 
 
 register_effect(EffectKind("tool", build_tool))
