@@ -1,4 +1,4 @@
-"""The ``fdeck`` command: run, validate, info, schema, regress.
+"""The ``fdeck`` command: run, validate, info, schema, regress, study, identify.
 
 User mistakes never print a traceback: they are reported as ``file:line:col: path: message`` and exit 2.
 """
@@ -99,20 +99,42 @@ def _progress_printer(total: float):
 
 @app.command()
 def run(deck: Path = typer.Argument(..., help="Deck file."),
-        out: Optional[Path] = typer.Option(None, "-o", "--out", help="Result folder (default results/<deck name>/).")):
+        out: Optional[Path] = typer.Option(None, "-o", "--out", help="Result folder (default results/<deck name>/)."),
+        checkpoint: Optional[Path] = typer.Argument(None, metavar="[FILE]",
+                                                    help="With --restart: the checkpoint to continue from."),
+        restart: bool = typer.Option(
+            False, "--restart",
+            help="Continue from a checkpoint: FILE (`fdeck run DECK --restart FILE`), or without it the newest valid "
+                 "one in the result folder (a damaged newer one is skipped with a message). The deck may add steps "
+                 "after the checkpoint's last one; a checkpoint of another deck or fdeck version is refused "
+                 "(exit 2)."),
+        max_wall: Optional[float] = typer.Option(
+            None, "--max-wall", min=0.0, metavar="SECONDS",
+            help="Stop after this much wall time with a checkpoint, a last frame and the summary; exit 124 (as "
+                 "timeout); continue with --restart.")):
     """Run a deck: frames (VTU/PVD, XDMF/HDF5), history.csv and summary.json in the result folder."""
     from fdeck.compile.errors import CompileError
     from fdeck.deck.errors import format_problems
-    from fdeck.run import execute, timing_table
+    from fdeck.run import RestartError, execute, timing_table
 
+    if checkpoint is not None and not restart:
+        _err(f"{checkpoint}: a checkpoint file is only read with --restart")
+        raise typer.Exit(2)
     d, locs = _read(deck)
     out = out or Path("results") / deck.stem
+    if restart:
+        restart = str(checkpoint) if checkpoint is not None else True
     progress, stop = _progress_printer(d.duration)
     try:
-        code, summary = execute(d, deck.parent, out, deck.stem, str(deck), progress)
+        code, summary = execute(d, deck.parent, out, deck.stem, str(deck), progress, echo=_err,
+                                restart=restart or None, max_wall=max_wall)
     except CompileError as exc:
         stop()
         _err(format_problems(_compile_problems(exc, deck, locs)))
+        raise typer.Exit(2)
+    except RestartError as exc:
+        stop()
+        _err(f"{deck}: cannot restart: {exc}")
         raise typer.Exit(2)
     stop()
     typer.echo(f"{deck}: {summary['status']} after {summary['cycles']} cycles, {summary['wall_time']:.2f} s wall, "
@@ -126,7 +148,8 @@ def run(deck: Path = typer.Argument(..., help="Deck file."),
     if summary["status"] == "failed":
         typer.echo(f"FAILED: {summary['message']}")
     elif summary["status"] == "interrupted":
-        typer.echo(f"INTERRUPTED: {summary['message']}")
+        typer.echo(f"INTERRUPTED: {summary['message']}; continue with --restart"
+                   + (f" (checkpoint {summary['checkpoints']['last']})" if summary["checkpoints"]["last"] else ""))
     elif code == 3:
         failed = [c["name"] for c in summary["checks"] if not c["passed"]]
         typer.echo(f"CHECK FAILED: {', '.join(failed)}")
@@ -213,6 +236,74 @@ def regress(cases: list[str] = typer.Argument(None, help="Case names (default: a
         bad += not ok
     raise typer.Exit(1 if bad else 0)
 
+
+_SCHEDULER_HELP = "Dask scheduler address (default: env FDECK_SCHEDULER; none: a local process pool)."
+
+
+def _pool_or_exit(scheduler, workers):
+    """The run pool, or exit 2 when Dask is asked for but not installed."""
+    import os
+
+    from fdeck.study.executor import SCHEDULER_ENV, Pool
+
+    if (scheduler or os.environ.get(SCHEDULER_ENV)) and importlib.util.find_spec("distributed") is None:
+        _err("a Dask scheduler was given but the 'distributed' package is not installed (pip install 'fdeck[dask]')")
+        raise typer.Exit(2)
+    return Pool(scheduler, workers)
+
+
+@app.command()
+def study(spec: Path = typer.Argument(..., help="Study file (STUDY.yaml)."),
+          out: Optional[Path] = typer.Option(None, "-o", "--out", help="Folder (default results/<study name>/)."),
+          scheduler: Optional[str] = typer.Option(None, "--scheduler", help=_SCHEDULER_HELP),
+          workers: Optional[int] = typer.Option(None, "--workers", min=1, help="Local pool size (default: CPUs).")):
+    """Run a deck's variants; study.csv, study.json, study.png (error against wall time) and the cheapest variant
+    within the study's tolerance. Exit 0, 2 bad input, 3 no variant within the tolerance or no reference."""
+    from fdeck.deck.errors import DeckError, format_problems
+    from fdeck.study import report
+    from fdeck.study.study import run_study
+
+    out = out or Path("results") / spec.stem
+    try:
+        with _pool_or_exit(scheduler, workers) as pool:
+            table = run_study(spec, out, pool, echo=typer.echo)
+    except DeckError as exc:
+        _err(format_problems(exc.problems))
+        raise typer.Exit(2)
+    files = report.write(table, out)
+    typer.echo(report.text(table))
+    typer.echo("wrote " + ", ".join(str(f) for f in files))
+    raise typer.Exit(0 if table["cheapest"] else 3)
+
+
+@app.command()
+def identify(spec: Path = typer.Argument(..., help="Identification file (IDENT.yaml)."),
+             out: Optional[Path] = typer.Option(None, "-o", "--out", help="Folder (default results/<file name>/)."),
+             scheduler: Optional[str] = typer.Option(None, "--scheduler", help=_SCHEDULER_HELP),
+             workers: Optional[int] = typer.Option(None, "--workers", min=1, help="Local pool size (default: CPUs).")):
+    """Fit deck parameters to measured values (least squares); identify.json, the fitted preset. Exit 0, 2 bad
+    input, 4 a run gave no answer, 3 the fit stopped before converging."""
+    from fdeck.deck.errors import DeckError, format_problems
+    from fdeck.io.summary import write_json_atomic
+    from fdeck.study.identify import IdentifyError, run_identify, text
+
+    out = out or Path("results") / spec.stem
+    try:
+        with _pool_or_exit(scheduler, workers) as pool:
+            result = run_identify(spec, out, pool, echo=typer.echo)
+    except DeckError as exc:
+        _err(format_problems(exc.problems))
+        raise typer.Exit(2)
+    except IdentifyError as exc:
+        _err(f"{spec}: {exc}")
+        raise typer.Exit(4)
+    write_json_atomic(out / "identify.json", result)
+    typer.echo(text(result))
+    typer.echo(f"wrote {out / 'identify.json'}")
+    raise typer.Exit(0 if result["status"] == "converged" else 3)
+
+
+import importlib.util  # noqa: E402  (used by `study` and `identify`)
 
 import numpy as np  # noqa: E402  (used by `info`; kept below the commands so --help stays fast to read)
 

@@ -1,11 +1,22 @@
 """One run: deck file -> compile -> engine -> frames, history, summary; returns the process exit code.
 
-Exit codes: 0 every check passed; 2 bad input (deck or geometry); 3 a check failed; 4 numerical failure
-(NaN, inverted element); 130 / 143 stopped by SIGINT / SIGTERM (a last frame and the summary are written).
+Exit codes: 0 every check passed; 2 bad input (deck or geometry, or a checkpoint that does not belong to the deck);
+3 a check failed; 4 numerical failure (NaN, inverted element); 124 the wall-time limit (``--max-wall``) was spent,
+as ``timeout`` reports it; 130 / 143 stopped by SIGINT / SIGTERM. A stopped run (124, 130, 143) writes a
+checkpoint, a last frame and the summary, and ``fdeck run --restart`` continues it.
+
+Checkpoints and restart: ``output.checkpoint`` saves the state (``engine.solver``'s state, the output writers'
+bookkeeping, the history rows) through ``io.checkpoint``, with digests of the deck's canonical content (without
+its output settings, checks and title), of the mesh arrays and of each step, and the fdeck version. A restart
+refuses a checkpoint whose digests or version differ, except that steps may have been ADDED after the
+checkpoint's ones (continue a finished forming with a second step). The restarted run rewrites history.csv with
+the checkpoint's rows, keeps the frames the checkpoint had written and continues both indexes.
 """
 
 from __future__ import annotations
 
+import hashlib
+import json
 import signal
 import sys
 import time
@@ -16,7 +27,61 @@ import numpy as np
 from fdeck import checks as checks_mod
 from fdeck.engine import solver
 
-EXIT_OK, EXIT_INPUT, EXIT_CHECK, EXIT_NUMERIC = 0, 2, 3, 4
+EXIT_OK, EXIT_INPUT, EXIT_CHECK, EXIT_NUMERIC, EXIT_WALL = 0, 2, 3, 4, 124
+
+
+class RestartError(Exception):
+    """A restart that cannot be done (no valid checkpoint, one of another deck or version); exit 2."""
+
+
+def _sha(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
+
+def deck_digests(deck, problem) -> dict:
+    """What ties a checkpoint to a deck: SHA-256 of the deck's canonical content without its steps, output settings
+    (but with the reactions and measures, which make the history columns), checks and title, and of the mesh
+    arrays; one SHA-256 per step; the fdeck version; the run's duration when a built-in amplitude spans it (then
+    adding a step changes the loads of the steps before)."""
+    from fdeck import __version__
+
+    data = deck.model_dump(mode="json")
+    steps = data.pop("steps")
+    output = data.pop("output")
+    for key in ("checks", "title"):
+        data.pop(key, None)
+    data["output"] = {"reactions": output["reactions"], "measures": output["measures"]}
+    h = hashlib.sha256(json.dumps(data, sort_keys=True).encode())
+    h.update(np.ascontiguousarray(problem.X).tobytes())
+    for ctype, conn in problem.cells.items():
+        h.update(ctype.encode() + np.ascontiguousarray(conn, dtype=np.int64).tobytes())
+
+    def relative(node) -> bool:
+        if isinstance(node, dict):
+            return any((("amplitude" in k) and v in ("ramp", "smooth")) or relative(v) for k, v in node.items())
+        return isinstance(node, list) and any(relative(v) for v in node)
+
+    return {"version": __version__, "base": h.hexdigest(),
+            "steps": [_sha(json.dumps(st, sort_keys=True).encode()) for st in steps],
+            "duration": problem.duration if relative(data) else None}
+
+
+def check_compatible(saved: dict, now: dict, where: str) -> None:
+    """RestartError unless a checkpoint with digests ``saved`` may continue under a deck with digests ``now``."""
+    if saved["version"] != now["version"]:
+        raise RestartError(f"{where} was written by fdeck {saved['version']}, this is fdeck {now['version']}: "
+                           "a restart needs the same version")
+    if saved["base"] != now["base"]:
+        raise RestartError(f"{where} belongs to another deck or mesh (materials, sections, mesh, boundary, loads, "
+                           "tools, contact, reactions or measures differ)")
+    n = len(saved["steps"])
+    if now["steps"][:n] != saved["steps"]:
+        changed = next((i for i in range(n) if i >= len(now["steps"]) or now["steps"][i] != saved["steps"][i]), n)
+        raise RestartError(f"{where}: step {changed} differs from the checkpoint's (steps may only be added after "
+                           "the last one)")
+    if saved["duration"] is not None and saved["duration"] != now["duration"]:
+        raise RestartError(f"{where}: the built-in amplitudes 'ramp'/'smooth' span the whole run, so adding steps "
+                           "changes the loads already applied; use a tabular amplitude or 'constant' to extend a run")
 
 
 def assemble_cells(problem) -> dict[str, np.ndarray]:
@@ -44,18 +109,30 @@ class Outputs(solver.Sink):
     array}``, e.g. ``wrinkle``; two measures giving the same name are merged with fmax) and the surfaces of the
     effects that have bodies (``Effect.surfaces()``: rigid tools), written as blocks of their own."""
 
-    def __init__(self, problem, out_dir: Path, name: str, progress):
+    def __init__(self, problem, out_dir: Path, name: str, progress, digests: dict | None = None,
+                 resume: dict | None = None):
         from fdeck.io.frames import open_series
         from fdeck.io.history import HistoryWriter
         from fdeck.physics.measures.tables import PathTable
 
         self.problem, self.progress_fn = problem, progress
         out_dir.mkdir(parents=True, exist_ok=True)
-        self.series = open_series(problem.deck.output.formats, out_dir, name, problem.X, problem.cells)
+        formats = problem.deck.output.formats
+        if resume is None:
+            self.series = open_series(formats, out_dir, name, problem.X, problem.cells)
+        else:
+            self.series = _resume_series(formats, out_dir, name, problem, resume)
         self.hist = HistoryWriter(out_dir / "history.csv", solver.history_columns(problem))
-        self.frames_written = 0
-        self.last_frame_time = -1.0
+        self.frames_written = 0 if resume is None else resume["outputs"]["frames_written"]
+        self.last_frame_time = -1.0 if resume is None else resume["outputs"]["last_frame_time"]
+        if resume is not None:  # history.csv back to the checkpoint's rows, then continued by the run
+            for row in resume["engine"]["result"]["history"]:
+                self.hist.write_row(row)
         self.out_dir = out_dir
+        self.digests = digests
+        self.card = problem.deck.output.checkpoint
+        self.checkpoints, self.checkpoint_time, self.last_checkpoint = 0, 0.0, time.perf_counter()
+        self.checkpoint_path: Path | None = None
         self.paths = [PathTable(card, problem.groups, problem.X, problem.cells) for card in problem.deck.output.paths]
         self.tables: list[str] = []  # file names of the end-of-run tables and plots
 
@@ -94,6 +171,31 @@ class Outputs(solver.Sink):
     def history(self, row):
         self.hist.write_row(row)
 
+    def checkpoint_due(self, cycles):
+        if self.card is None:
+            return False
+        if self.card.cycles is not None:
+            return cycles % self.card.cycles == 0
+        return time.perf_counter() - self.last_checkpoint >= self.card.seconds
+
+    def checkpoint(self, state, reason):
+        """Save the engine's ``state`` with the writers' bookkeeping (every series' attributes: file lists and index
+        entries) and the digests; a completed run saves one only when the deck asks for checkpoints."""
+        from fdeck.io.checkpoint import write_checkpoint
+
+        if reason == "completed" and self.card is None:
+            return
+        t0 = time.perf_counter()
+        payload = {"digests": self.digests, "reason": reason, "engine": state,
+                   "outputs": {"frames_written": self.frames_written, "last_frame_time": self.last_frame_time,
+                               "out_dir": str(self.out_dir),
+                               "series": {type(s).__name__: dict(vars(s)) for s in self.series}}}
+        keep = self.card.keep if self.card is not None else 2
+        self.checkpoint_path = write_checkpoint(self.out_dir, state["result"]["cycles"], payload, keep)
+        self.last_checkpoint = time.perf_counter()
+        self.checkpoints += 1
+        self.checkpoint_time += self.last_checkpoint - t0
+
     def progress(self, t, cycles, dt):
         self.progress_fn(t, cycles, dt)
 
@@ -101,6 +203,37 @@ class Outputs(solver.Sink):
         for s in self.series:
             s.close()
         self.hist.close()
+
+
+def _resume_series(formats, out_dir: Path, name: str, problem, resume: dict) -> list:
+    """The frame series of the checkpoint's run, continued: each writer rebuilt from its saved attributes (paths
+    moved to ``out_dir``, where the restarted run writes), its index rewritten to the frames the checkpoint had
+    written (a frame written after the checkpoint, e.g. an interrupted run's last one, drops out); a format the
+    checkpoint's run did not write starts a new series."""
+    from fdeck.io import frames
+    from fdeck.io.frames import open_series
+
+    saved = resume["outputs"]["series"]
+    old_dir = Path(resume["outputs"]["out_dir"])
+
+    def moved(value):
+        if isinstance(value, Path) and value.parent == old_dir:
+            return out_dir / value.name
+        if isinstance(value, list):
+            return [moved(v) for v in value]
+        return value
+
+    out = []
+    for fmt in formats:
+        cls = {"vtu": frames.VtuSeries, "xdmf": frames.XdmfSeries}[fmt]
+        if cls.__name__ in saved:
+            series = cls.__new__(cls)
+            series.__dict__.update({k: moved(v) for k, v in saved[cls.__name__].items()})
+            series._write_index()
+            out.append(series)
+        else:
+            out += open_series([fmt], out_dir, name, problem.X, problem.cells)
+    return out
 
 
 class _Signals:
@@ -121,20 +254,61 @@ class _Signals:
             signal.signal(s, h)
 
 
+def find_restart(out_dir: Path, restart: str | bool, digests: dict, echo=print) -> dict:
+    """The checkpoint payload to continue from: the file ``restart`` names, or (``restart`` True or "") the newest
+    intact one in ``out_dir`` (damaged newer ones are skipped with a message through ``echo``). RestartError when
+    there is none or it does not belong to the deck (``check_compatible``)."""
+    from fdeck.io.checkpoint import CheckpointError, latest_valid, read_checkpoint
+
+    if isinstance(restart, str) and restart:
+        path = Path(restart)
+        try:
+            payload = read_checkpoint(path)
+        except CheckpointError as exc:
+            raise RestartError(str(exc)) from None
+    else:
+        found = latest_valid(out_dir, report=echo)
+        if found is None:
+            raise RestartError(f"no valid checkpoint in {out_dir}/ to restart from")
+        path, payload = found
+    if "digests" not in payload or "engine" not in payload:
+        raise RestartError(f"{path}: not an fdeck run checkpoint")
+    check_compatible(payload["digests"], digests, str(path))
+    echo(f"restarting from {path} (cycle {payload['engine']['result']['cycles']}, "
+         f"t = {payload['engine']['scalars']['t']:.6g} s)")
+    return payload
+
+
 def execute(deck, base: Path, out_dir: Path, name: str, deck_path: str, progress=lambda *a: None,
-            echo=print) -> tuple[int, dict]:
-    """Compile and run a validated deck; returns (exit code, summary dict). Raises CompileError on bad geometry."""
+            echo=print, restart: str | bool | None = None, max_wall: float | None = None) -> tuple[int, dict]:
+    """Compile and run a validated deck; returns (exit code, summary dict). Raises CompileError on bad geometry,
+    RestartError when ``restart`` (a checkpoint file, or True/"" for the newest valid one in ``out_dir``) cannot be
+    used. ``max_wall`` [s]: stop with a checkpoint (exit 124) once the run has taken that long."""
     from fdeck.compile.problem import compile_deck
     from fdeck.io.summary import write_json_atomic
 
     t_compile = time.perf_counter()
     problem = compile_deck(deck, base)
     t_compile = time.perf_counter() - t_compile
-    out = Outputs(problem, out_dir, name, progress)
+    digests = deck_digests(deck, problem)
+    resume = None if restart is None or restart is False else find_restart(out_dir, restart, digests, echo)
+    out = Outputs(problem, out_dir, name, progress, digests, resume)
+    start = time.perf_counter()
+    walled = []
+
+    def should_stop():
+        if sig.received is not None:
+            return True
+        if max_wall is not None and time.perf_counter() - start >= max_wall:
+            walled.append(True)
+            return f"wall-time limit of {max_wall:g} s spent (--max-wall)"
+        return False
+
     with _Signals() as sig:
-        first = None if problem.rotations is None else {"director": problem.rotations.d0}
-        out.frame(0.0, problem.X.copy(), np.zeros_like(problem.X), first)
-        result = solver.run(problem, out, should_stop=lambda: sig.received is not None)
+        if resume is None:
+            first = None if problem.rotations is None else {"director": problem.rotations.d0}
+            out.frame(0.0, problem.X.copy(), np.zeros_like(problem.X), first)
+        result = solver.run(problem, out, should_stop=should_stop, resume=None if resume is None else resume["engine"])
         if (result.status in ("interrupted", "failed") or result.stopped_steps) and result.t > out.last_frame_time:
             last = None if result.final_directors is None else {"director": result.final_directors}
             out.frame(result.t, result.final_positions, result.final_velocities, last)
@@ -143,8 +317,11 @@ def execute(deck, base: Path, out_dir: Path, name: str, deck_path: str, progress
     hist = np.array(result.history) if result.history else np.zeros((0, len(result.columns)))
     verdicts = checks_mod.evaluate(deck.checks, hist, result.columns, problem.duration)
     summary = make_summary(deck_path, deck, problem, result, verdicts, t_compile, out.frames_written)
+    summary["checkpoints"] = {"written": out.checkpoints, "time": out.checkpoint_time,
+                              "last": None if out.checkpoint_path is None else out.checkpoint_path.name,
+                              "restarted_from_cycle": None if resume is None else resume["engine"]["result"]["cycles"]}
     if result.status == "interrupted":
-        code = 130 if sig.received == signal.SIGINT else 143
+        code = EXIT_WALL if walled and sig.received is None else 130 if sig.received == signal.SIGINT else 143
     elif result.status == "failed":
         code = EXIT_NUMERIC
     else:

@@ -17,6 +17,7 @@ from fdeck import registry
 from fdeck.deck.base import Card
 from fdeck.deck.errors import unknown_name
 from fdeck.cards.contact import Contact, Tool
+from fdeck.cards.checkpoint import Checkpoint
 from fdeck.cards.steps import BulkViscosity, Damping
 from fdeck.deck.section import SectionBase
 
@@ -256,6 +257,9 @@ class Output(Card):
         False, description="Write fibres.csv at the end: per element (1-based, mesh order) the current centroid "
         "[mm], the current unit warp and weft directions and the shear angle [deg], for mapping onto a structural "
         "model.")
+    checkpoint: Checkpoint | None = Field(
+        None, description="Save the whole state every so often for `fdeck run --restart` (none by default; a run "
+        "stopped by a signal or --max-wall saves one anyway).")
 
     @model_validator(mode="after")
     def _unique_paths(self):

@@ -80,6 +80,17 @@ class Ledger:
             for i in idx:
                 acc[i] += dt_avg * values[i]
 
+    def state(self) -> list[list[float]]:
+        """The integrals of the rate terms, in source order (for a checkpoint; ``integral`` is keyed by ``id``)."""
+        return [list(self.integral[id(s)]) for s, _ in self.rated]
+
+    def load_state(self, state: list[list[float]]) -> None:
+        """Restore ``state()`` of a ledger over the same sources."""
+        if len(state) != len(self.rated):
+            raise ValueError(f"ledger state has {len(state)} rated sources, this ledger {len(self.rated)}")
+        for (s, _), acc in zip(self.rated, state):
+            self.integral[id(s)] = list(acc)
+
     def totals(self) -> dict[str, float]:
         """Current value of every term, by name (same names summed; rate terms integrated)."""
         out = dict.fromkeys(self.kinds, 0.0)

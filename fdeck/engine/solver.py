@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 import numba
 import numpy as np
 
+from fdeck.engine import snapshot
 from fdeck.engine.integrate import drift, kick
 from fdeck.engine.ledger import Ledger
 from fdeck.engine.rotation import Rotations, drift_rot, kick_rot
@@ -67,6 +68,13 @@ class Sink:
 
     def progress(self, t: float, cycles: int, dt: float) -> None: ...
 
+    def checkpoint_due(self, cycles: int) -> bool:
+        """Whether to save the state at the end of this cycle (``cycles`` done so far)."""
+        return False
+
+    def checkpoint(self, state: dict, reason: str) -> None:
+        """Save ``state`` (see ``run``'s ``resume``); ``reason`` is "every", "interrupted" or "completed"."""
+
 
 def ledger(problem) -> Ledger:
     """The run's ledger: every group's and effect's terms, after the core columns and (with rotational dofs) the
@@ -103,18 +111,29 @@ class _Timer:
 SERIAL_BELOW = 2000
 
 
-def run(problem, sink: Sink, should_stop=lambda: False) -> Result:
-    """Run every step of ``problem``; never raises for numerical failure (status 'failed' with a message)."""
+def run(problem, sink: Sink, should_stop=lambda: False, resume: dict | None = None) -> Result:
+    """Run every step of ``problem``; never raises for numerical failure (status 'failed' with a message).
+
+    ``should_stop()`` is polled every cycle: a truthy value interrupts the run (a string is taken as the message).
+    ``resume``: an engine state from ``sink.checkpoint`` of an earlier run of the same problem (or of one whose
+    steps were a prefix of this one's): the run continues from it and, with the same deck, ends bitwise identical
+    to the uninterrupted run."""
     threads = numba.get_num_threads()
     if problem.n_element < SERIAL_BELOW:
         numba.set_num_threads(1)
     try:
-        return _run(problem, sink, should_stop)
+        return _run(problem, sink, should_stop, resume)
     finally:
         numba.set_num_threads(threads)
 
 
-def _run(problem, sink: Sink, should_stop) -> Result:
+# Loop variables of ``_run`` saved in a checkpoint (besides the arrays of ``_ARRAYS`` and every object's state).
+_SCALARS = ("k", "t", "t_step_end", "dt_prev", "dt_next", "step_cycles", "next_frame", "next_hist", "w_ext",
+            "d_damp", "energy0", "ke_rot")
+_ARRAYS = ("x", "v", "v_old", "f_int", "f_ext", "f_damp", "fe_prev", "fd_prev", "dx", "reaction")
+
+
+def _run(problem, sink: Sink, should_stop, resume) -> Result:
     res = Result(columns=history_columns(problem))
     groups, effects = problem.groups, problem.effects
     book = ledger(problem)
@@ -130,12 +149,15 @@ def _run(problem, sink: Sink, should_stop) -> Result:
     fd_prev = np.zeros((n, 3))  # damping force at the previous cycle
     dx = np.zeros((n, 3))  # last position increment
     v_old, reaction = np.zeros((n, 3)), np.zeros((n, 3))
+    arrays = dict(x=x, v=v, v_old=v_old, f_int=f_int, f_ext=f_ext, f_damp=f_damp, fe_prev=fe_prev, fd_prev=fd_prev,
+                  dx=dx, reaction=reaction)
     rot = None
     if problem.rotations is not None:
         rot = Rotations(problem.rotations.d0, problem.rotations.nodes)
         for obj in list(groups) + list(effects):
             if obj.rotational:
                 obj.bind(rot)
+    objects = [list(groups), list(effects), list(problem.measures), rot]
     ke_rot = 0.0
     timer = _Timer()
     T = problem.duration
@@ -147,6 +169,7 @@ def _run(problem, sink: Sink, should_stop) -> Result:
     t = 0.0
     wall0 = time.perf_counter()
     last_progress = wall0
+    k0 = 0 if resume is None else resume["scalars"]["k"]
 
     def forces(t, x, v):
         """Fill f_int, f_ext, f_damp (and the moments) at (t, x, v)."""
@@ -174,10 +197,27 @@ def _run(problem, sink: Sink, should_stop) -> Result:
     def stable_dt(safety):
         return safety * min([g.stable_dt() for g in groups] + [e.stable_dt() for e in effects])
 
+    def state(k) -> dict:
+        """Everything the loop needs to continue from the end of the current cycle (a checkpoint's engine part)."""
+        loop = dict(k=k, t=t, t_step_end=t_step_end, dt_prev=dt_prev, dt_next=dt_next, step_cycles=step_cycles,
+                    next_frame=next_frame, next_hist=next_hist, w_ext=w_ext, d_damp=d_damp, energy0=energy0,
+                    ke_rot=ke_rot)
+        return {"scalars": loop, "arrays": {name: a.copy() for name, a in arrays.items()},
+                "directors": None if rot is None else rot.d.copy(),  # also in "objects"; here for readers
+                "objects": snapshot.capture(objects), "ledger": book.state(),
+                "result": dict(cycles=res.cycles, dt_min=res.dt_min, dt_max=res.dt_max, message=res.message,
+                               added_mass=list(res.added_mass), stopped_steps=list(res.stopped_steps),
+                               history=np.array(res.history, dtype=np.float64).reshape(len(res.history),
+                                                                                       len(res.columns))),
+                "times": dict(T=T, frames=len(frame_times), history=len(hist_times))}
+
     try:
         dt_prev = 0.0
         t_step_end = 0.0
         for k, plan in enumerate(problem.steps):
+            if k < k0:
+                t_step_end += plan.duration
+                continue
             t_step_end += plan.duration
             for g, rho in zip(groups, plan.rho):
                 g.set_density(rho)
@@ -187,15 +227,37 @@ def _run(problem, sink: Sink, should_stop) -> Result:
                 rot.set_inertia(plan.inertia)
             for e in effects:
                 e.begin_step(k, plan)
-            if k == 0:
-                forces(0.0, x, v)
-                check(0.0)
-            res.added_mass.append(plan.added_mass)
-            dt_next = stable_dt(plan.dt_safety)
-            step_cycles = 0
+            if resume is not None and k == k0:
+                # the step's set-up above, then the saved state over it (history variables, loop counters)
+                for name, a in resume["arrays"].items():
+                    arrays[name][...] = a
+                snapshot.restore(objects, resume["objects"])
+                book.load_state(resume["ledger"])
+                sc, rr = resume["scalars"], resume["result"]
+                t, t_step_end, dt_prev, dt_next = sc["t"], sc["t_step_end"], sc["dt_prev"], sc["dt_next"]
+                step_cycles, w_ext, d_damp, energy0, ke_rot = (sc["step_cycles"], sc["w_ext"], sc["d_damp"],
+                                                               sc["energy0"], sc["ke_rot"])
+                res.cycles, res.dt_min, res.dt_max, res.message = rr["cycles"], rr["dt_min"], rr["dt_max"], rr["message"]
+                res.added_mass, res.stopped_steps = list(rr["added_mass"]), list(rr["stopped_steps"])
+                res.history = [list(map(float, row)) for row in rr["history"]]
+                if resume["times"] == dict(T=T, frames=len(frame_times), history=len(hist_times)):
+                    next_frame, next_hist = sc["next_frame"], sc["next_hist"]
+                else:  # steps were added: the frame and history times are spread over the new duration
+                    next_frame = int(np.searchsorted(frame_times, t + 1e-12 * T, side="right"))
+                    next_hist = int(np.searchsorted(hist_times, t - 1e-12 * T, side="left"))
+            else:
+                if k == 0:
+                    forces(0.0, x, v)
+                    check(0.0)
+                res.added_mass.append(plan.added_mass)
+                dt_next = stable_dt(plan.dt_safety)
+                step_cycles = 0
             while t < t_step_end * (1 - 1e-12):
-                if should_stop():
-                    res.status, res.message = "interrupted", f"stopped by signal at t = {t:.6g} s"
+                stop = should_stop()
+                if stop:
+                    res.status = "interrupted"
+                    res.message = stop if isinstance(stop, str) else f"stopped by signal at t = {t:.6g} s"
+                    sink.checkpoint(state(k), "interrupted")
                     break
                 if plan.max_cycles is not None and step_cycles >= plan.max_cycles:
                     res.stopped_steps.append(plan.name)
@@ -268,6 +330,9 @@ def _run(problem, sink: Sink, should_stop) -> Result:
                     while next_frame < len(frame_times) and frame_times[next_frame] <= t + 1e-12 * T:
                         next_frame += 1
                     t0 = timer.add("output", t0)
+                if sink.checkpoint_due(res.cycles):
+                    sink.checkpoint(state(k), "every")
+                    t0 = timer.add("checkpoints", t0)
                 now = time.perf_counter()
                 if now - last_progress > 0.5:
                     sink.progress(t, res.cycles, dt)
@@ -276,6 +341,7 @@ def _run(problem, sink: Sink, should_stop) -> Result:
                 break
         if res.status == "running":
             res.status = "completed"
+            sink.checkpoint(state(len(problem.steps) - 1), "completed")
     except RunStopped as exc:
         res.status, res.message = "failed", str(exc)
     res.t = t
