@@ -1,0 +1,98 @@
+"""A study's variants: names, the values each sets, its resolved deck data and that deck's digest.
+
+The digest (SHA-256 of the resolved deck as canonical JSON, plus the bytes of a mesh file it reads) keys the run
+cache: a re-run study reuses every variant whose resolved deck it has already run, whatever the variant is called.
+"""
+
+from __future__ import annotations
+
+import copy
+import hashlib
+import itertools
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from fdeck.study import deck_paths
+
+
+@dataclass
+class Planned:
+    """One run to make: a name, the settings applied (path -> value, in order), the resolved deck data, the folder
+    of the deck it came from (mesh files are relative to it) and its digest."""
+
+    name: str
+    settings: dict[str, Any]
+    deck: dict
+    base_dir: Path
+    digest: str = field(default="")
+
+
+def _short(value: Any) -> str:
+    text = json.dumps(value, separators=(",", ":"))
+    return text.strip('"').replace('"', "")
+
+
+def grid_name(settings: dict[str, Any]) -> str:
+    """``{mesh.block.divisions: [40, 1, 4]}`` -> ``divisions=[40,1,4]`` (the last key part of each path that is not
+    an index, joined by ',')."""
+    out = []
+    for path, value in settings.items():
+        keys = [p for p in deck_paths.parts(path) if not isinstance(p, int)]
+        out.append(f"{keys[-1] if keys else path}={_short(value)}")
+    return ",".join(out)
+
+
+def expand(spec) -> list[tuple[str, dict[str, Any]]]:
+    """(name, settings) of every variant: the grid's combinations (first path slowest), then the listed
+    variants. Each variant's settings start with the study's common `set`."""
+    out = []
+    if spec.grid:
+        paths = list(spec.grid)
+        for combo in itertools.product(*(spec.grid[p] for p in paths)):
+            own = dict(zip(paths, combo))
+            out.append((grid_name(own), {**spec.set, **own}))
+    out += [(v.name, {**spec.set, **v.set}) for v in spec.variants]
+    return out
+
+
+def resolve(base: dict, settings: dict[str, Any]) -> dict:
+    """A deep copy of deck data with every setting applied in order."""
+    data = copy.deepcopy(base)
+    for path, value in settings.items():
+        deck_paths.set_value(data, path, value)
+    return data
+
+
+def digest(deck: dict, base_dir: Path) -> str:
+    """SHA-256 (hex) of the resolved deck and, when it reads a mesh file, of that file's bytes."""
+    h = hashlib.sha256(json.dumps(deck, sort_keys=True, separators=(",", ":"), default=repr).encode())
+    mesh_file = (deck.get("mesh") or {}).get("file") if isinstance(deck.get("mesh"), dict) else None
+    if isinstance(mesh_file, str) and (base_dir / mesh_file).is_file():
+        h.update((base_dir / mesh_file).read_bytes())
+    return h.hexdigest()
+
+
+def plan(name: str, settings: dict[str, Any], base_data: dict, base_dir: Path) -> Planned:
+    deck = resolve(base_data, settings)
+    return Planned(name, settings, deck, base_dir, digest(deck, base_dir))
+
+
+def path_problems(filename: str, locs, base_data: dict, where: list[tuple[tuple, dict]]):
+    """Located problems for every deck path that does not lead into the base deck. ``where`` lists (location of
+    the settings mapping in the file, settings)."""
+    from fdeck.deck.read import located
+
+    problems = []
+    for loc, settings in where:
+        for path in settings:
+            try:
+                deck_paths.check_settable(base_data, path)
+            except deck_paths.PathError as exc:
+                problems.append(located(filename, locs, loc + (path,), str(exc)))
+    return problems
+
+
+def duplicate_names(names: list[str]) -> list[str]:
+    return sorted({n for n in names if names.count(n) > 1})
