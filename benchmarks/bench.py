@@ -10,6 +10,7 @@ Writes benchmarks/results.json.
     python benchmarks/bench.py            # full run (about 10 minutes on 2 cores)
     python benchmarks/bench.py --quick    # 10 k elements only
     python benchmarks/bench.py --report   # markdown table of benchmarks/results.json (what the README shows)
+    python benchmarks/bench.py --peers    # CalculiX explicit beside fdeck on the same block (benchmarks/peers.py)
 """
 
 from __future__ import annotations
@@ -148,8 +149,15 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--report", action="store_true", help="print the markdown table of results.json and exit")
+    ap.add_argument("--peers", action="store_true", help="CalculiX beside fdeck where ccx is on PATH (peers.py); "
+                    "with --report, print its table")
     ap.add_argument("--one", nargs=5, help=argparse.SUPPRESS)  # form mat nx,ny,nz cycles threads (subprocess)
     args = ap.parse_args()
+    if args.peers:
+        sys.path.insert(0, str(HERE))
+        import peers
+
+        sys.exit(peers.main(["--report"] if args.report else (["--quick"] if args.quick else [])))
     if args.report:
         print(report(json.loads((HERE / "results.json").read_text())))
         return
