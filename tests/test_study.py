@@ -84,8 +84,9 @@ def _line(path, text):
 
 
 def test_bad_study_file_gives_located_errors_and_exit_2(tmp_path):
-    """Requirement: a study file with an unknown key, a deck path that is not in the base deck and an unknown
-    reference variant gets one located file:line:col message each, exit 2 and no traceback."""
+    """Requirement: a study file with an unknown key, a deck path that is not in the base deck, a misspelt deck
+    field and an unknown reference variant gets one located file:line:col message each, exit 2, no traceback and
+    no run."""
     spec = tmp_path / "bad.yaml"
     spec.write_text(STUDY.replace("quantities:", "quantitys: [x]\nquantities:") + "reference: {type: finest}\n"
                     "tolerance: 0.1\n")
@@ -93,16 +94,18 @@ def test_bad_study_file_gives_located_errors_and_exit_2(tmp_path):
     assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
     expected = f"{spec}:{_line(spec, 'quantitys:')}:1: quantitys: unknown key 'quantitys' (did you mean 'quantities'?)"
     assert expected in r.stderr, r.stderr
-    spec.write_text(STUDY.replace("loads.0.force", "loads.1.force") + "reference: {type: finest, variant: fine}\n"
-                    "tolerance: 0.1\n")
+    spec.write_text(STUDY.replace("loads.0.force", "loads.1.force").replace("youngs_modulus", "youngs_modulos")
+                    + "reference: {type: finest, variant: fine}\ntolerance: 0.1\n")
     r = fdeck("study", spec, "-o", tmp_path / "out")
     assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
     lines = r.stderr.strip().splitlines()
-    assert len(lines) == 2, r.stderr
+    assert len(lines) == 3, r.stderr
     assert lines[0].startswith(f"{spec}:{_line(spec, 'loads.1.force')}:"), lines[0]
     assert "variants[0].set.loads.1.force" in lines[0] and "loads has 1 items, no item 1" in lines[0], lines[0]
-    assert lines[1].startswith(f"{spec}:{_line(spec, 'variant: fine')}:"), lines[1]
-    assert "unknown variant 'fine'" in lines[1], lines[1]
+    assert lines[1].startswith(f"{spec}:{_line(spec, 'youngs_modulos')}:"), lines[1]
+    assert "unknown key 'youngs_modulos' (did you mean 'youngs_modulus'?)" in lines[1], lines[1]
+    assert lines[2].startswith(f"{spec}:{_line(spec, 'variant: fine')}:"), lines[2]
+    assert "unknown variant 'fine'" in lines[2], lines[2]
     assert not (tmp_path / "out").exists()
 
 

@@ -80,8 +80,9 @@ def plan(name: str, settings: dict[str, Any], base_data: dict, base_dir: Path) -
 
 
 def path_problems(filename: str, locs, base_data: dict, where: list[tuple[tuple, dict]]):
-    """Located problems for every deck path that does not lead into the base deck. ``where`` lists (location of
-    the settings mapping in the file, settings)."""
+    """Located problems for every deck path that does not lead into the base deck, or whose last key is new to it
+    and not a key the deck allows there (a misspelt field: did-you-mean from the deck's schema). ``where`` lists
+    (location of the settings mapping in the file, settings)."""
     from fdeck.deck.read import located
 
     problems = []
@@ -91,7 +92,33 @@ def path_problems(filename: str, locs, base_data: dict, where: list[tuple[tuple,
                 deck_paths.check_settable(base_data, path)
             except deck_paths.PathError as exc:
                 problems.append(located(filename, locs, loc + (path,), str(exc)))
+                continue
+            try:
+                deck_paths.get(base_data, path)
+            except deck_paths.PathError:  # a new key: is it one the deck knows?
+                message = unknown_key(base_data, path)
+                if message:
+                    problems.append(located(filename, locs, loc + (path,), f"deck path '{path}': {message}"))
     return problems
+
+
+def unknown_key(base_data: dict, path: str) -> str | None:
+    """The deck schema's message when setting the new last key of ``path`` makes it an unknown key, else None."""
+    from pydantic import ValidationError
+
+    from fdeck.deck.errors import problems_from_validation_error
+    from fdeck.deck.loader import Locations
+    from fdeck.deck.model import Deck
+
+    data = resolve(base_data, {path: 0})
+    try:
+        Deck.model_validate(data)
+    except ValidationError as exc:
+        here = "".join(f"[{p}]" if isinstance(p, int) else f".{p}" for p in deck_paths.parts(path)).lstrip(".")
+        for prob in problems_from_validation_error(exc, Locations(data=data), "deck", Deck):
+            if prob.path == here and prob.message.startswith("unknown key"):
+                return prob.message
+    return None
 
 
 def duplicate_names(names: list[str]) -> list[str]:
