@@ -1,9 +1,10 @@
-"""The hexahedral formulations a solid section may name (`full`, `fbar`, `reduced`); their section card is
-`fdeck.deck.model.Section`, their elements `fdeck.physics.elements.hex8`."""
+"""The hexahedral formulations a solid section may name (`full`, `fbar`, `reduced`, `ans`); their section card is
+`fdeck.deck.model.Section`, their elements `fdeck.physics.elements.hex8` (`ans`: `hex8_ans`)."""
 
 from fdeck.registry import CardEntry, register_card
 
 for _name, _doc in (("full", "2x2x2 Gauss integration"),
                     ("fbar", "F-bar / mean dilatation, 2x2x2 points with volume-averaged J"),
-                    ("reduced", "one point, uniform gradient, Flanagan-Belytschko hourglass control")):
+                    ("reduced", "one point, uniform gradient, Flanagan-Belytschko hourglass control"),
+                    ("ans", "2x2x2 points, assumed natural shear strains (no shear locking in bending)")):
     register_card(CardEntry(_name, None, "formulation", description=_doc))

@@ -392,9 +392,10 @@ class Hex8Group:
     def cell_fields(self, idx=None) -> dict[str, np.ndarray]:
         """Per-element output averaged over points, for all elements or the local indices ``idx``:
         Cauchy stress (n, 6) XX YY ZZ XY YZ XZ [MPa], strain-energy density [MPa], J, the formulation's
-        diagnostics (J_bar, hourglass energy density) and the material's (see its ``diagnostics``)."""
+        diagnostics (J_bar, hourglass energy density) and the material's (see its ``diagnostics``), all taken at the
+        deformation gradient the material sees (``F_material`` of a subclass, F-bar's Fbar, else F)."""
         idx = np.arange(len(self.conn)) if idx is None else np.asarray(idx)
-        F = (self.Fbar if self.formulation == "fbar" else self.F)[idx]
+        F = getattr(self, "F_material", self.Fbar if self.formulation == "fbar" else self.F)[idx]
         P, w = self.P[idx], self.w[idx]
         sigma = np.einsum("eqij,eqkj->eqik", P, F) / np.linalg.det(F)[..., None, None]
         wn = w / w.sum(axis=1, keepdims=True)
