@@ -21,12 +21,14 @@ def _cell(v):
 
 
 def columns(table: dict) -> tuple[list[str], list[list]]:
-    """Header and rows of study.csv: name, one column per deck path set, status, answer and error per quantity,
+    """Header and rows of study.csv: name, one column per deck path whose value differs between variants, status, answer and error per quantity,
     largest error, within tolerance, wall time [s], cycles, elements, us per element-cycle, added mass [%],
     reused, run folder, message."""
     paths: list[str] = []
     for r in table["rows"]:
         paths += [p for p in r["settings"] if p not in paths]
+    # a path every variant sets alike (the study's common `set`) says nothing about the rows: it stays in study.json
+    paths = [p for p in paths if len({json.dumps(r["settings"].get(p), sort_keys=True) for r in table["rows"]}) > 1]
     qs = table["quantities"]
     head = (["variant"] + paths + ["status"] + [f"{q}" for q in qs] + [f"error_{q}" for q in qs]
             + ["max_error", "within_tolerance", "wall_time_s", "cycles", "elements", "us_per_element_cycle",
