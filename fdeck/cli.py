@@ -44,25 +44,20 @@ def _compile_problems(exc, path: Path, locs):
 
 @app.command()
 def validate(decks: list[Path] = typer.Argument(..., help="Deck files.")):
-    """Check decks (schema, names, mesh sets, element geometry) and report every problem at once."""
-    from fdeck.compile.errors import CompileError
-    from fdeck.compile.problem import compile_deck
+    """Check decks (schema, names, mesh sets, element geometry, physically absurd figures: cycles, memory, stable
+    step floor, travel per cycle) and report every problem at once."""
+    from fdeck.compile.check import check_deck
     from fdeck.deck.errors import DeckError, format_problems
-    from fdeck.deck.read import read_deck
 
     bad = False
     for path in decks:
         try:
-            deck, locs, warnings = read_deck(path)
+            *_, warnings = check_deck(path)
             if warnings:
                 _err(format_problems(warnings))
-            compile_deck(deck, path.parent)
             typer.echo(f"{path}: ok")
         except DeckError as exc:
             _err(format_problems(exc.problems))
-            bad = True
-        except CompileError as exc:
-            _err(format_problems(_compile_problems(exc, path, locs)))
             bad = True
     raise typer.Exit(2 if bad else 0)
 
@@ -97,6 +92,39 @@ def _progress_printer(total: float):
     return plain, lambda: None
 
 
+def _claim_output(deck: Path, out: Path, overwrite: bool, keep: bool):
+    """Before a run: refuse (exit 2) a deck ``fdeck validate`` refuses (absurd figures included) and a result
+    folder owned by another deck (``fdeck.io.outdir``); -> the ``Claim`` on ``out``. ``keep``: a restart continues
+    the folder's run, so none of its files are stale."""
+    from fdeck.compile.check import check_deck
+    from fdeck.deck.errors import DeckError, format_problems
+    from fdeck.io.outdir import OutdirError, claim
+
+    try:
+        check_deck(deck)  # compiles once more than execute does: the price of refusing before any file is touched
+    except DeckError as exc:
+        _err(format_problems(exc.problems))
+        raise typer.Exit(2)
+    try:  # a restart's own checks (deck digest, appended steps) decide whose checkpoint may be continued
+        c = claim(out, deck, overwrite or keep)
+    except OutdirError as exc:
+        _err(f"{deck}: {exc}")
+        raise typer.Exit(2)
+    if keep:
+        c.stale = []
+    return c
+
+
+def _after_first_frame(progress, hook):
+    """``progress`` that calls ``hook()`` (which acts once) before each report: the engine reports progress only
+    after the initial frame is written."""
+    def wrapped(*args):
+        hook()
+        return progress(*args)
+
+    return wrapped
+
+
 @app.command()
 def run(deck: Path = typer.Argument(..., help="Deck file."),
         out: Optional[Path] = typer.Option(None, "-o", "--out", help="Result folder (default results/<deck name>/)."),
@@ -111,7 +139,11 @@ def run(deck: Path = typer.Argument(..., help="Deck file."),
         max_wall: Optional[float] = typer.Option(
             None, "--max-wall", min=0.0, metavar="SECONDS",
             help="Stop after this much wall time with a checkpoint, a last frame and the summary; exit 124 (as "
-                 "timeout); continue with --restart.")):
+                 "timeout); continue with --restart."),
+        overwrite: bool = typer.Option(
+            False, "--overwrite",
+            help="Write into a result folder that holds another deck's results (or files no fdeck run marked); "
+                 "that run's files are removed once the new run has written its first frame, other files are kept.")):
     """Run a deck: frames (VTU/PVD, XDMF/HDF5), history.csv and summary.json in the result folder."""
     from fdeck.compile.errors import CompileError
     from fdeck.deck.errors import format_problems
@@ -122,9 +154,11 @@ def run(deck: Path = typer.Argument(..., help="Deck file."),
         raise typer.Exit(2)
     d, locs = _read(deck)
     out = out or Path("results") / deck.stem
+    claim = _claim_output(deck, out, overwrite, keep=restart)
     if restart:
         restart = str(checkpoint) if checkpoint is not None else True
     progress, stop = _progress_printer(d.duration)
+    progress = _after_first_frame(progress, claim.first_frame)
     try:
         code, summary = execute(d, deck.parent, out, deck.stem, str(deck), progress, echo=_err,
                                 restart=restart or None, max_wall=max_wall)
@@ -137,6 +171,7 @@ def run(deck: Path = typer.Argument(..., help="Deck file."),
         _err(f"{deck}: cannot restart: {exc}")
         raise typer.Exit(2)
     stop()
+    claim.finish()
     typer.echo(f"{deck}: {summary['status']} after {summary['cycles']} cycles, {summary['wall_time']:.2f} s wall, "
                f"{summary['us_per_element_cycle']:.3f} us per element-cycle, "
                f"{summary['elements']} elements, dt {summary['dt_min'] or 0:.3g}..{summary['dt_max'] or 0:.3g} s")
@@ -158,18 +193,24 @@ def run(deck: Path = typer.Argument(..., help="Deck file."),
 
 @app.command()
 def info(deck: Path = typer.Argument(..., help="Deck file.")):
-    """What a deck will do: sizes, stable time step, cycles, memory, the effects that will run."""
-    from fdeck.compile.errors import CompileError
-    from fdeck.compile.problem import compile_deck, rest_dt
-    from fdeck.deck.errors import format_problems
+    """What a deck will do: sizes, stable time step, cycles, memory, the effects that will run, the files it
+    reads (resolved paths)."""
+    from fdeck.compile.check import check_deck
+    from fdeck.compile.problem import rest_dt
+    from fdeck.deck.errors import DeckError, format_problems
 
-    d, locs = _read(deck)
     try:
-        p = compile_deck(d, deck.parent)
-    except CompileError as exc:
-        _err(format_problems(_compile_problems(exc, deck, locs)))
+        d, locs, p, warnings = check_deck(deck)
+    except DeckError as exc:
+        _err(format_problems(exc.problems))
         raise typer.Exit(2)
+    if warnings:
+        _err(format_problems(warnings))
     typer.echo(f"{deck}: {d.title}")
+    from fdeck.compile.check import read_paths
+
+    for what, where in read_paths(d, deck.parent):
+        typer.echo(f"  reads {what}: {where}")
     typer.echo(f"  nodes {p.n_node}, elements {p.n_element}, duration {p.duration:.4g} s, units {d.units}")
     from fdeck import registry
 

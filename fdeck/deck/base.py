@@ -6,9 +6,11 @@ from pydantic import BaseModel, ConfigDict, Field
 
 
 class Card(BaseModel):
-    """A block of the deck. Unknown keys are rejected (with a did-you-mean, see ``deck.errors``)."""
+    """A block of the deck. Unknown keys are rejected (with a did-you-mean, see ``deck.errors``); NaN and
+    infinities are rejected in every number (no deck quantity is meant to be one, and they reach the compiler
+    as crashes or silent NaN fields)."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True, validate_default=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, validate_default=True, allow_inf_nan=False)
 
 
 Density = Annotated[float, Field(gt=0.0, description="Mass density [t/mm^3 in mm-t-s units].")]

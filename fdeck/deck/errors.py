@@ -26,8 +26,14 @@ class Problem:
 
     def __str__(self) -> str:
         where = self.file if self.line is None else f"{self.file}:{self.line}:{self.col or 1}"
-        text = ("warning: " if self.severity == "warning" else "") + self.message
-        return f"{where}: {self.path}: {text}" if self.path else f"{where}: {text}"
+        text = ("warning: " if self.severity == "warning" else "") + _printable(self.message)
+        return f"{where}: {_printable(self.path)}: {text}" if self.path else f"{where}: {text}"
+
+
+def _printable(text: str) -> str:
+    """``text`` with control and other non-printable characters escaped (``\\x1e``, ``\\n``): a key or value
+    quoted from the deck must not break the one-line-per-problem format."""
+    return text if text.isprintable() else "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
 
 
 def format_problems(problems) -> str:

@@ -69,7 +69,32 @@ def _pos(mark) -> Pos:
     return mark.line + 1, mark.column + 1
 
 
+MAX_DECK_BYTES = 16 * 2**20  # a deck is text of some kilobytes; a bigger file is a mistake (a mesh named as deck)
+MAX_VALUES = 1_000_000  # values after expanding aliases: stops a "billion laughs" document (aliases of aliases)
+
+
+class _TooBig(Exception):
+    def __init__(self, pos):
+        self.pos = pos
+
+
+def _expanded_size(node, memo) -> int:
+    """Number of values ``node`` becomes once every alias is expanded, counted on the node graph (each distinct
+    node once: cheap even when the expansion is astronomical); a recursive alias counts 1 (``_build`` reports it)."""
+    key = id(node)
+    if key in memo:
+        return memo[key]
+    memo[key] = 1
+    if isinstance(node, yaml.SequenceNode):
+        memo[key] = 1 + sum(_expanded_size(n, memo) for n in node.value)
+    elif isinstance(node, yaml.MappingNode):
+        memo[key] = 1 + sum(_expanded_size(k, memo) + _expanded_size(v, memo) for k, v in node.value)
+    return memo[key]
+
+
 def _build(loader, node, path, locs, problems, filename, stack=frozenset()):
+    if len(locs.values) >= MAX_VALUES:
+        raise _TooBig(_pos(node.start_mark))
     locs.values[path] = _pos(node.start_mark)
     if isinstance(node, yaml.ScalarNode):
         return loader.construct_object(node)
@@ -107,6 +132,8 @@ def load_yaml(text: str, filename: str) -> tuple[Any, Locations]:
     try:
         loader = _Loader(text)
         node = loader.get_single_node()
+        if node is not None and _expanded_size(node, {}) > MAX_VALUES:
+            raise _TooBig(_pos(node.start_mark))
         locs.data = None if node is None else _build(loader, node, (), locs, problems, filename)
     except yaml.MarkedYAMLError as exc:
         mark = exc.problem_mark or exc.context_mark
@@ -114,10 +141,19 @@ def load_yaml(text: str, filename: str) -> tuple[Any, Locations]:
         message = f"YAML {'syntax error' if syntax else 'error'}: {exc.problem or exc.context}"
         if exc.context and exc.problem and exc.context_mark:
             message += f" ({exc.context} at line {exc.context_mark.line + 1})"
-        line, col = _pos(mark) if mark else (None, None)
+        line, col = _pos(mark) if mark else (1, 1)
         raise DeckError([Problem(filename, line, col, "", message)]) from None
+    except yaml.reader.ReaderError as exc:  # a character YAML does not allow (control characters, NUL)
+        line, col = _offset_pos(text, exc.position)
+        raise DeckError([Problem(filename, line, col, "", f"YAML error: character {exc.character!r} is not "
+                                 "allowed in YAML text")]) from None
     except yaml.YAMLError as exc:
-        raise DeckError([Problem(filename, None, None, "", f"YAML error: {exc}")]) from None
+        raise DeckError([Problem(filename, 1, 1, "", f"YAML error: {exc}")]) from None
+    except _TooBig as exc:
+        raise DeckError([Problem(filename, *exc.pos, "", f"the document expands to more than {MAX_VALUES} "
+                                 "values (aliases of aliases?)")]) from None
+    except RecursionError:
+        raise DeckError([Problem(filename, 1, 1, "", "the document is nested too deeply")]) from None
     finally:
         if loader is not None:
             loader.dispose()
@@ -126,12 +162,30 @@ def load_yaml(text: str, filename: str) -> tuple[Any, Locations]:
     return locs.data, locs
 
 
+def _offset_pos(text, offset: int) -> Pos:
+    """(line, col), 1-based, of character (or byte) ``offset`` of ``text`` (a str or bytes)."""
+    nl = "\n" if isinstance(text, str) else b"\n"
+    offset = max(0, min(int(offset), len(text)))
+    return text.count(nl, 0, offset) + 1, offset - (text.rfind(nl, 0, offset) + 1) + 1
+
+
 def load_file(path) -> tuple[Any, Locations]:
-    """Read ``path`` (UTF-8) and ``load_yaml`` it; unreadable files are a ``DeckError`` without a location."""
+    """Read ``path`` (UTF-8) and ``load_yaml`` it. An unreadable file is a ``DeckError`` without a location (there
+    is no text to point into), bytes that are not UTF-8 one at their line and column, a file over
+    ``MAX_DECK_BYTES`` one at 1:1."""
+    name = str(path)
     try:
-        text = Path(path).read_text(encoding="utf-8")
+        size = Path(path).stat().st_size
+        if size > MAX_DECK_BYTES:
+            raise DeckError([Problem(name, 1, 1, "", f"deck file is {size / 2**20:.1f} MiB, above the "
+                                     f"{MAX_DECK_BYTES // 2**20} MiB a deck may have (is it a mesh file?)")])
+        data = Path(path).read_bytes()
     except OSError as exc:
-        raise DeckError([Problem(str(path), None, None, "", f"cannot read deck: {exc.strerror or exc}")]) from None
+        raise DeckError([Problem(name, None, None, "", f"cannot read deck: {exc.strerror or exc}")]) from None
+    try:
+        text = data.decode("utf-8")
     except UnicodeDecodeError as exc:
-        raise DeckError([Problem(str(path), None, None, "", f"deck is not UTF-8 text ({exc.reason})")]) from None
-    return load_yaml(text, str(path))
+        line, col = _offset_pos(data, exc.start)
+        raise DeckError([Problem(name, line, col, "", f"deck is not UTF-8 text: byte {data[exc.start]:#04x} "
+                                 f"({exc.reason})")]) from None
+    return load_yaml(text, name)
