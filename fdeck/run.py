@@ -120,6 +120,10 @@ class Outputs(solver.Sink):
         formats = problem.deck.output.formats
         if resume is None:
             self.series = open_series(formats, out_dir, name, problem.X, problem.cells)
+            from fdeck.io.checkpoint import checkpoint_files
+
+            for stale in checkpoint_files(out_dir):  # an earlier run's: --restart must not pick them up
+                stale.unlink()
         else:
             self.series = _resume_series(formats, out_dir, name, problem, resume)
         self.hist = HistoryWriter(out_dir / "history.csv", solver.history_columns(problem))
@@ -309,6 +313,7 @@ def execute(deck, base: Path, out_dir: Path, name: str, deck_path: str, progress
             first = None if problem.rotations is None else {"director": problem.rotations.d0}
             out.frame(0.0, problem.X.copy(), np.zeros_like(problem.X), first)
         result = solver.run(problem, out, should_stop=should_stop, resume=None if resume is None else resume["engine"])
+        good = {"index": out.frames_written - 1, "time": out.last_frame_time}  # before a failure's own frame
         if (result.status in ("interrupted", "failed") or result.stopped_steps) and result.t > out.last_frame_time:
             last = None if result.final_directors is None else {"director": result.final_directors}
             out.frame(result.t, result.final_positions, result.final_velocities, last)
@@ -320,6 +325,12 @@ def execute(deck, base: Path, out_dir: Path, name: str, deck_path: str, progress
     summary["checkpoints"] = {"written": out.checkpoints, "time": out.checkpoint_time,
                               "last": None if out.checkpoint_path is None else out.checkpoint_path.name,
                               "restarted_from_cycle": None if resume is None else resume["engine"]["result"]["cycles"]}
+    if result.status == "failed":
+        # the last frame the engine wrote on its schedule holds a state every monitor accepted; the frame written
+        # at the failure (if any) shows the state that failed them
+        summary["last_good_frame"] = good
+        summary["failure_frame"] = ({"index": out.frames_written - 1, "time": out.last_frame_time}
+                                    if out.frames_written - 1 > good["index"] else None)
     if result.status == "interrupted":
         code = EXIT_WALL if walled and sig.received is None else 130 if sig.received == signal.SIGINT else 143
     elif result.status == "failed":

@@ -31,13 +31,13 @@ boundary:
   - {type: fixed, nodes: zmin, dofs: [z]}
   - {type: velocity, nodes: zmax, dofs: [z], value: -800.0, amplitude: constant}
 steps:
-  - {name: compress, duration: 1.5e-3}
+  - {name: compress, duration: 8.0e-4}
 output:
   frames: 6
   formats: [vtu, xdmf]
   history_points: 40
   reactions: [zmax]
-  checkpoint: {every: 20, keep: 100}
+  checkpoint: {every: 10, keep: 100}
 """
 
 SHELL = """title: tiny shell
@@ -51,13 +51,13 @@ boundary:
   - {type: fixed, nodes: xmin, dofs: [x, y, z, rx, ry, rz]}
   - {type: velocity, nodes: xmax, dofs: [z], value: 2000.0, amplitude: constant}
 steps:
-  - {name: pull, duration: 2.0e-4}
+  - {name: pull, duration: 1.0e-4}
 output:
   frames: 5
   formats: [vtu, xdmf]
   history_points: 40
   reactions: [xmax]
-  checkpoint: {every: 20, keep: 100}
+  checkpoint: {every: 10, keep: 100}
 """
 
 BEND = """title: tiny fibre bending with damping
@@ -78,13 +78,13 @@ boundary:
   - {type: fixed, nodes: xmax, dofs: [x, z]}
   - {type: velocity, nodes: load_line, dofs: [z], value: -2000.0, amplitude: constant}
 steps:
-  - {name: bend, duration: 1.5e-4, damping: {mass_proportional: 2000}}
+  - {name: bend, duration: 8.0e-5, damping: {mass_proportional: 2000}}
 output:
   frames: 5
   formats: [vtu, xdmf]
   history_points: 40
   reactions: [load_line]
-  checkpoint: {every: 20, keep: 100}
+  checkpoint: {every: 10, keep: 100}
 """
 
 DECKS = {"hex": HEX, "shell": SHELL, "bend": BEND}
@@ -179,8 +179,8 @@ def test_added_step_continues_a_finished_run(tmp_path):
     and ends bitwise equal (SHA-256 of x and v) to the 2-step run from scratch; the history rows after the
     restart point are equal too (the rows before it are sampled over the 1-step duration, by design)."""
     one = write_deck(tmp_path, HEX)
-    two_text = HEX.replace("  - {name: compress, duration: 1.5e-3}\n",
-                           "  - {name: compress, duration: 1.5e-3}\n  - {name: hold, duration: 5.0e-4, "
+    two_text = HEX.replace("  - {name: compress, duration: 8.0e-4}\n",
+                           "  - {name: compress, duration: 8.0e-4}\n  - {name: hold, duration: 5.0e-4, "
                            "damping: {mass_proportional: 3000}}\n")
     assert two_text != HEX
     two = write_deck(tmp_path / "b", two_text)
@@ -215,7 +215,7 @@ def test_refuses_other_deck_version_and_changed_steps(tmp_path):
     other = write_deck(tmp_path / "o", HEX.replace("youngs_modulus: 10.0", "youngs_modulus: 11.0"))
     with pytest.raises(RestartError, match="another deck"):
         run(other, out, restart=True)
-    changed = write_deck(tmp_path / "c", HEX.replace("duration: 1.5e-3", "duration: 1.6e-3"))
+    changed = write_deck(tmp_path / "c", HEX.replace("duration: 8.0e-4", "duration: 1.6e-3"))
     with pytest.raises(RestartError, match="step 0 differs"):
         run(changed, out, restart=True)
     result = CliRunner().invoke(app, ["run", str(other), "-o", str(out), "--restart"])
@@ -231,8 +231,8 @@ def test_refuses_other_deck_version_and_changed_steps(tmp_path):
     smooth = HEX.replace("value: -800.0, amplitude: constant", "value: -1.0, amplitude: smooth")
     out2 = tmp_path / "out2"
     assert run(write_deck(tmp_path / "s", smooth), out2)[0] == 0
-    longer = smooth.replace("  - {name: compress, duration: 1.5e-3}\n",
-                            "  - {name: compress, duration: 1.5e-3}\n  - {name: hold, duration: 1.0e-4}\n")
+    longer = smooth.replace("  - {name: compress, duration: 8.0e-4}\n",
+                            "  - {name: compress, duration: 8.0e-4}\n  - {name: hold, duration: 1.0e-4}\n")
     with pytest.raises(RestartError, match="amplitudes 'ramp'/'smooth'"):
         run(write_deck(tmp_path / "l", longer), out2, restart=True)
 
@@ -289,9 +289,9 @@ def test_checkpoint_card_errors_are_located(tmp_path):
 
     for bad, key in (("{every: '10 years'}", "every"), ("{every: 0}", "every"), ("{every: 2.5}", "every"),
                      ("{every: 10, keep: 0}", "keep")):
-        path = write_deck(tmp_path, HEX.replace("{every: 20, keep: 100}", bad))
+        path = write_deck(tmp_path, HEX.replace("{every: 10, keep: 100}", bad))
         with pytest.raises(DeckError) as exc:
             read_deck(path)
         text = format_problems(exc.value.problems)
-        line = HEX.splitlines().index("  checkpoint: {every: 20, keep: 100}") + 1
+        line = HEX.splitlines().index("  checkpoint: {every: 10, keep: 100}") + 1
         assert f"{path}:{line}:" in text and f"output.checkpoint.{key}" in text, text

@@ -224,6 +224,9 @@ class Step(Card):
                                                  "defaults b1 = 0.06, b2 = 1.2); none when absent.")
     max_cycles: int | None = Field(None, ge=1, description="End this step after this many cycles (a guard); the "
                                    "next step starts there with its own duration; summary.json names such steps.")
+    min_dt_ratio: float = Field(1e-3, gt=0, lt=1, description="Stop the run (exit 4, naming the element or effect "
+                                "that sets it) when the stable step falls below this fraction of the step's first "
+                                "one: a collapsing step means a crushed element or a runaway contact.")
 
 
 class OutputPath(Card):

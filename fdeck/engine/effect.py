@@ -20,7 +20,9 @@ A section add-on names the element ``group`` it acts on; if it has a stiffness o
 the rest steps (n_el,) [s] of that group's elements with it, for mass scaling and ``fdeck info`` (None otherwise).
 
 Ledger: ``terms`` (tuple of ``engine.ledger.Term``) and ``term_values()`` give the effect's named energies and
-history columns (see ``engine.ledger``). Rotational effects (``rotational = True``) are bound once to the nodal
+history columns (see ``engine.ledger``). Checkpoints save an effect's mutable state by walking its attributes
+(``engine.snapshot``: writeable arrays and plain scalars); an effect whose state lives elsewhere (a cache that must
+be rebuilt, an external handle) defines ``state()`` and ``load_state(state)`` instead. Rotational effects (``rotational = True``) are bound once to the nodal
 rotations with ``bind(rotations)``.
 """
 

@@ -16,6 +16,15 @@ Rotational degrees of freedom (``engine.rotation``) exist only when the problem 
 x and v, groups and effects that declare ``rotational = True`` are bound to them once, and the ledger adds the
 rotational kinetic energy and the work of moments. A problem without them runs the same operations as before they
 existed (no rotational arrays, no extra kernel calls).
+
+Checkpoints: at the end of a cycle the sink may ask for one (``Sink.checkpoint_due``); the engine then hands it its
+whole state: the loop's variables (step index, t, the step's end, dt_prev, dt_next, cycles of the step, next frame
+and history sample, external work, damping dissipation, energy0), the nodal arrays (x, v, v_old, the three force
+arrays, fe_prev, fd_prev, dx, reaction), every group's, effect's, measure's and the rotations' mutable arrays and
+scalars (``engine.snapshot``), the ledger's integrals, the history rows. It also hands one when a run is stopped
+(at the top of a cycle, before anything moved) and when it completes. ``run(..., resume=state)`` sets the step up
+as usual and then puts the state back, so the continued run performs the uninterrupted run's operations on the
+same bits.
 """
 
 from __future__ import annotations
@@ -34,12 +43,38 @@ from fdeck.engine.rotation import Rotations, drift_rot, kick_rot
 
 
 class RunStopped(Exception):
-    """Numerical failure: ``cause`` says what, ``element`` which element (user id) or None."""
+    """Numerical failure: ``cause`` says what, ``element`` which element (user id) or None, ``node`` which node
+    (1-based, mesh order) or None."""
 
-    def __init__(self, cause: str, t: float, element: int | None = None):
-        self.cause, self.t, self.element = cause, t, element
+    def __init__(self, cause: str, t: float, element: int | None = None, node: int | None = None):
+        self.cause, self.t, self.element, self.node = cause, t, element, node
         where = f" in element {element}" if element is not None else ""
+        where += f" at node {node} (1-based, mesh order)" if node is not None else ""
         super().__init__(f"{cause}{where} at t = {t:.6g} s")
+
+
+def first_bad_node(*arrays: np.ndarray) -> int | None:
+    """1-based index of the first node with a non-finite value in any of ``arrays`` (n_node, 3), or None."""
+    bad = np.zeros(len(arrays[0]), dtype=bool)
+    for a in arrays:
+        bad |= ~np.isfinite(a).all(axis=1)
+    idx = np.flatnonzero(bad)
+    return int(idx[0]) + 1 if len(idx) else None
+
+
+def step_setter(groups, effects) -> str:
+    """Who sets the stable step now: 'element <id> (<group>)' for an element group (its smallest ``dt_e``), or the
+    effect's name. Call right after the groups' and effects' ``stable_dt()``."""
+    best, who = math.inf, "unknown"
+    for g in groups:
+        dt_e = getattr(g, "dt_e", None)
+        if dt_e is not None and len(dt_e) and float(dt_e.min()) < best:
+            i = int(np.argmin(dt_e))
+            best, who = float(dt_e[i]), f"element {int(g.ids[i])} ({g.name})"
+    for e in effects:
+        if e.stable_dt() < best:
+            best, who = e.stable_dt(), f"effect {e.name}"
+    return who
 
 
 @dataclass
@@ -127,12 +162,6 @@ def run(problem, sink: Sink, should_stop=lambda: False, resume: dict | None = No
         numba.set_num_threads(threads)
 
 
-# Loop variables of ``_run`` saved in a checkpoint (besides the arrays of ``_ARRAYS`` and every object's state).
-_SCALARS = ("k", "t", "t_step_end", "dt_prev", "dt_next", "step_cycles", "next_frame", "next_hist", "w_ext",
-            "d_damp", "energy0", "ke_rot")
-_ARRAYS = ("x", "v", "v_old", "f_int", "f_ext", "f_damp", "fe_prev", "fd_prev", "dx", "reaction")
-
-
 def _run(problem, sink: Sink, should_stop, resume) -> Result:
     res = Result(columns=history_columns(problem))
     groups, effects = problem.groups, problem.effects
@@ -199,9 +228,9 @@ def _run(problem, sink: Sink, should_stop, resume) -> Result:
 
     def state(k) -> dict:
         """Everything the loop needs to continue from the end of the current cycle (a checkpoint's engine part)."""
-        loop = dict(k=k, t=t, t_step_end=t_step_end, dt_prev=dt_prev, dt_next=dt_next, step_cycles=step_cycles,
-                    next_frame=next_frame, next_hist=next_hist, w_ext=w_ext, d_damp=d_damp, energy0=energy0,
-                    ke_rot=ke_rot)
+        loop = dict(k=k, t=t, t_step_end=t_step_end, dt_prev=dt_prev, dt_next=dt_next, dt_start=dt_start,
+                    step_cycles=step_cycles, next_frame=next_frame, next_hist=next_hist, w_ext=w_ext,
+                    d_damp=d_damp, energy0=energy0, ke_rot=ke_rot)
         return {"scalars": loop, "arrays": {name: a.copy() for name, a in arrays.items()},
                 "directors": None if rot is None else rot.d.copy(),  # also in "objects"; here for readers
                 "objects": snapshot.capture(objects), "ledger": book.state(),
@@ -227,6 +256,7 @@ def _run(problem, sink: Sink, should_stop, resume) -> Result:
                 rot.set_inertia(plan.inertia)
             for e in effects:
                 e.begin_step(k, plan)
+            collapse = getattr(problem.deck.steps[k], "min_dt_ratio", 0.0)
             if resume is not None and k == k0:
                 # the step's set-up above, then the saved state over it (history variables, loop counters)
                 for name, a in resume["arrays"].items():
@@ -235,6 +265,7 @@ def _run(problem, sink: Sink, should_stop, resume) -> Result:
                 book.load_state(resume["ledger"])
                 sc, rr = resume["scalars"], resume["result"]
                 t, t_step_end, dt_prev, dt_next = sc["t"], sc["t_step_end"], sc["dt_prev"], sc["dt_next"]
+                dt_start = sc["dt_start"]
                 step_cycles, w_ext, d_damp, energy0, ke_rot = (sc["step_cycles"], sc["w_ext"], sc["d_damp"],
                                                                sc["energy0"], sc["ke_rot"])
                 res.cycles, res.dt_min, res.dt_max, res.message = rr["cycles"], rr["dt_min"], rr["dt_max"], rr["message"]
@@ -251,6 +282,7 @@ def _run(problem, sink: Sink, should_stop, resume) -> Result:
                     check(0.0)
                 res.added_mass.append(plan.added_mass)
                 dt_next = stable_dt(plan.dt_safety)
+                dt_start = dt_next
                 step_cycles = 0
             while t < t_step_end * (1 - 1e-12):
                 stop = should_stop()
@@ -289,14 +321,16 @@ def _run(problem, sink: Sink, should_stop, resume) -> Result:
                     ke += ke_rot
                 book.integrate(dt_avg)
                 if not math.isfinite(ke):
-                    raise RunStopped("non-finite energy (NaN or overflow in forces)", t)
+                    raise RunStopped("non-finite energy (NaN or overflow in forces)", t,
+                                     node=first_bad_node(x, v, f_int, f_ext, f_damp))
                 if energy0 is None:
                     energy0 = book.energy(ke)
                 if next_hist < len(hist_times) and t >= hist_times[next_hist] - 1e-12 * T:
                     extra = [ke_rot] if rot is not None else []
                     row, _ = book.row(t, dt, ke, w_ext, d_damp, energy0, extra)
                     if not all(math.isfinite(r) for r in row[:len(book.columns)]):
-                        raise RunStopped("non-finite energy (NaN or overflow in forces)", t)
+                        raise RunStopped("non-finite energy (NaN or overflow in forces)", t,
+                                         node=first_bad_node(x, v, f_int, f_ext, f_damp))
                     for nodes in problem.reactions.values():
                         row += reaction[nodes].sum(axis=0).tolist()
                         if rot is not None:
@@ -321,6 +355,10 @@ def _run(problem, sink: Sink, should_stop, resume) -> Result:
                 t0 = time.perf_counter()
                 check(t)
                 dt_next = stable_dt(plan.dt_safety)
+                if dt_next < collapse * dt_start:
+                    raise RunStopped(f"stable time step collapsed to {dt_next:.3g} s, below {collapse:g} x the "
+                                     f"step's first {dt_start:.3g} s (steps[{k}].min_dt_ratio), set by "
+                                     f"{step_setter(groups, effects)}", t)
                 t0 = timer.add("stable step and monitors", t0)
                 if next_frame < len(frame_times) and t >= frame_times[next_frame] - 1e-12 * T:
                     if rot is None:
