@@ -87,7 +87,31 @@ output:
   checkpoint: {every: 10, keep: 100}
 """
 
-DECKS = {"hex": HEX, "shell": SHELL, "bend": BEND}
+CONTACT = """title: tiny block pressed and dragged by a moving tool, with friction
+mesh:
+  block: {size: [10, 10, 5], divisions: [2, 2, 1]}
+materials:
+  m: {type: linear_elastic, density: 1.0e-6, youngs_modulus: 1000.0, poisson_ratio: 0.3}
+sections:
+  - {material: m, formulation: full}
+boundary:
+  - {type: fixed, nodes: zmin}
+tools:
+  pad:
+    surface: {shape: plane, point: [0, 0, 5.0], normal: [0, 0.3, -1]}
+    motion: {kind: velocity, value: 200.0, direction: [0.3, 0, -1], amplitude: constant}
+contact:
+  - {tool: pad, normal: {law: linear, stiffness: 200.0}, friction: {static: 0.3}}
+steps:
+  - {name: press, duration: 8.0e-3, damping: {mass_proportional: 500}}
+output:
+  frames: 4
+  formats: [vtu, xdmf]
+  history_points: 40
+  checkpoint: {every: 10, keep: 100}
+"""
+
+DECKS = {"hex": HEX, "shell": SHELL, "bend": BEND, "contact": CONTACT}
 
 
 def write_deck(folder: Path, text: str, name: str = "deck") -> Path:
@@ -147,8 +171,9 @@ def parallel_below_2000(monkeypatch):
 def test_restart_from_half_time_is_bitwise(tmp_path, kind, threads, parallel_below_2000):
     """Requirement: a run restarted from a checkpoint at half of its cycles ends bitwise identical to the
     uninterrupted run (SHA-256 of final x, v, directors, of history.csv and of the .pvd/.xdmf indexes), for a
-    hexahedral deck, a shell deck and a deck with fibre bending and damping, on 1 and 2 threads (tolerance zero:
-    the same operations on the same bits)."""
+    hexahedral deck, a shell deck, a deck with fibre bending and damping, and a block pressed and dragged by a
+    moving rigid tool with Coulomb friction (tool position and stick springs are state), on 1 and 2 threads
+    (tolerance zero: the same operations on the same bits)."""
     if threads > numba.config.NUMBA_NUM_THREADS:
         pytest.skip(f"NUMBA_NUM_THREADS={numba.config.NUMBA_NUM_THREADS}")
     saved = numba.get_num_threads()
