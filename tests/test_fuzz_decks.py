@@ -25,7 +25,7 @@ from pathlib import Path
 
 import pytest
 import yaml
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 from typer.testing import CliRunner
 
@@ -257,11 +257,23 @@ def _get(data, path):
     return data
 
 
+def _scaled(name: str, path: tuple, factor: float):
+    """A shipped deck with one number multiplied: an explicit example that validates, so the run path is always
+    exercised whatever the derandomized draws are."""
+    data = copy.deepcopy(ORIGINALS[DECKS / name])
+    _get(data, path[:-1])[path[-1]] = _get(data, path) * factor
+    return DECKS / name, yaml.safe_dump(data, sort_keys=False).encode()
+
+
 @settings(FAST, max_examples=8 if PROFILE == "fast" else 100)
+@example(_scaled("wave_bar.yaml", ("boundary", 1, "value"), 1e3))
+@example(_scaled("coupons/tension_sm.yaml", ("steps", 0, "duration"), 10.0))
 @given(tiny_value_mutation())
 def test_fuzz_run_ends_with_an_exit_code(case):
     """Requirement: a mutated tiny deck that validates, run with every step capped at 3 cycles, ends with exit 0, 3
-    or 4 within RUN_SECONDS, never an exception (fast profile: 8 derandomized examples)."""
+    or 4 within RUN_SECONDS, never an exception (fast profile: 8 derandomized examples and 2 explicit ones that
+    validate: a 1000x faster push of the wave bar, a
+    10x longer shell coupon)."""
     _fuzz_run(case)
 
 
