@@ -122,7 +122,6 @@ def kill_and_restart(tmp_path: Path, kills: int, seed: int) -> dict:
     return {"killed": killed, "in_writing": in_writing}
 
 
-@pytest.mark.nightly  # about 30 s on the CI machine (process start-ups): over the default tier's budget
 def test_sigkill_at_random_moments_then_restart_completes(tmp_path):
     """Requirement: after each SIGKILL at a seeded random moment of the run (3 kills here, 10 in the nightly test),
     every frame of the .pvd and .xdmf indexes opens (meshio, VTK), every line of history.csv parses, and
