@@ -183,13 +183,14 @@ class Outputs(solver.Sink):
         return time.perf_counter() - self.last_checkpoint >= self.card.seconds
 
     def checkpoint(self, state, reason):
-        """Save the engine's ``state`` with the writers' bookkeeping (every series' attributes: file lists and index
+        """Save the engine's ``state()`` with the writers' bookkeeping (every series' attributes: file lists and index
         entries) and the digests; a completed run saves one only when the deck asks for checkpoints."""
         from fdeck.io.checkpoint import write_checkpoint
 
         if reason == "completed" and self.card is None:
             return
         t0 = time.perf_counter()
+        state = state()
         payload = {"digests": self.digests, "reason": reason, "engine": state,
                    "outputs": {"frames_written": self.frames_written, "last_frame_time": self.last_frame_time,
                                "out_dir": str(self.out_dir),

@@ -10,7 +10,6 @@ the kills that fell in a write.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 import signal

@@ -13,7 +13,6 @@ import shutil
 from pathlib import Path
 
 import numba
-import numpy as np
 import pytest
 
 from fdeck.engine import solver
@@ -218,7 +217,8 @@ def test_added_step_continues_a_finished_run(tmp_path):
     assert run(two, ref)[0] == 0
     a, b = final_state(out), final_state(ref)
     for name in ("x", "v"):
-        assert hashlib.sha256(a["arrays"][name].tobytes()).digest() == hashlib.sha256(b["arrays"][name].tobytes()).digest()
+        assert hashlib.sha256(a["arrays"][name].tobytes()).digest() == \
+            hashlib.sha256(b["arrays"][name].tobytes()).digest()
     ha, hb = a["result"]["history"], b["result"]["history"]
     later_a, later_b = ha[ha[:, 0] > t1], hb[hb[:, 0] > t1]
     assert len(later_a) > 5 and later_a.tobytes() == later_b.tobytes()

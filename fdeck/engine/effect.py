@@ -22,8 +22,8 @@ the rest steps (n_el,) [s] of that group's elements with it, for mass scaling an
 Ledger: ``terms`` (tuple of ``engine.ledger.Term``) and ``term_values()`` give the effect's named energies and
 history columns (see ``engine.ledger``). Checkpoints save an effect's mutable state by walking its attributes
 (``engine.snapshot``: writeable arrays and plain scalars); an effect whose state lives elsewhere (a cache that must
-be rebuilt, an external handle) defines ``state()`` and ``load_state(state)`` instead. Rotational effects (``rotational = True``) are bound once to the nodal
-rotations with ``bind(rotations)``.
+be rebuilt, an external handle) defines ``state()`` and ``load_state(state)`` instead. Rotational effects
+(``rotational = True``) are bound once to the nodal rotations with ``bind(rotations)``.
 """
 
 from __future__ import annotations

@@ -10,10 +10,11 @@ state protocol, ``capture`` walks an object's attributes and records:
   tool, a group's material), each object once (the first path that reaches it, as walks are deterministic).
 
 Skipped: pydantic models (the deck's cards), frozen dataclasses (ledger terms), functions, numba dispatchers,
-modules, classes and objects of other packages. An object may refine this with ``state()`` / ``load_state(state)``; ``capture`` calls them when
-present. ``restore`` writes arrays back IN PLACE when shape and dtype match, so views and references other
-objects hold (a group bound to the engine's rotations) see the restored values; otherwise it rebinds the attribute.
-Constants restored to their own values are harmless, which is what makes the walk safe without an opt-in list.
+modules, classes and objects of other packages. An object may refine this with ``state()`` / ``load_state(state)``;
+``capture`` calls them when present. ``restore`` writes arrays back IN PLACE when shape and dtype match, so views
+and references other objects hold (a group bound to the engine's rotations) see the restored values; otherwise it
+rebinds the attribute. Constants restored to their own values are harmless, which is what makes the walk safe
+without an opt-in list; the price is size (a tool's writeable broad-phase grid is saved with every checkpoint).
 """
 
 from __future__ import annotations

@@ -107,8 +107,9 @@ class Sink:
         """Whether to save the state at the end of this cycle (``cycles`` done so far)."""
         return False
 
-    def checkpoint(self, state: dict, reason: str) -> None:
-        """Save ``state`` (see ``run``'s ``resume``); ``reason`` is "every", "interrupted" or "completed"."""
+    def checkpoint(self, state, reason: str) -> None:
+        """Save ``state()`` (a dict, see ``run``'s ``resume``; built only when called); ``reason`` is "every",
+        "interrupted" or "completed"."""
 
 
 def ledger(problem) -> Ledger:
@@ -268,7 +269,8 @@ def _run(problem, sink: Sink, should_stop, resume) -> Result:
                 dt_start = sc["dt_start"]
                 step_cycles, w_ext, d_damp, energy0, ke_rot = (sc["step_cycles"], sc["w_ext"], sc["d_damp"],
                                                                sc["energy0"], sc["ke_rot"])
-                res.cycles, res.dt_min, res.dt_max, res.message = rr["cycles"], rr["dt_min"], rr["dt_max"], rr["message"]
+                res.cycles, res.dt_min, res.dt_max = rr["cycles"], rr["dt_min"], rr["dt_max"]
+                res.message = rr["message"]
                 res.added_mass, res.stopped_steps = list(rr["added_mass"]), list(rr["stopped_steps"])
                 res.history = [list(map(float, row)) for row in rr["history"]]
                 if resume["times"] == dict(T=T, frames=len(frame_times), history=len(hist_times)):
@@ -289,7 +291,7 @@ def _run(problem, sink: Sink, should_stop, resume) -> Result:
                 if stop:
                     res.status = "interrupted"
                     res.message = stop if isinstance(stop, str) else f"stopped by signal at t = {t:.6g} s"
-                    sink.checkpoint(state(k), "interrupted")
+                    sink.checkpoint(lambda: state(k), "interrupted")
                     break
                 if plan.max_cycles is not None and step_cycles >= plan.max_cycles:
                     res.stopped_steps.append(plan.name)
@@ -369,7 +371,7 @@ def _run(problem, sink: Sink, should_stop, resume) -> Result:
                         next_frame += 1
                     t0 = timer.add("output", t0)
                 if sink.checkpoint_due(res.cycles):
-                    sink.checkpoint(state(k), "every")
+                    sink.checkpoint(lambda: state(k), "every")
                     t0 = timer.add("checkpoints", t0)
                 now = time.perf_counter()
                 if now - last_progress > 0.5:
@@ -379,7 +381,7 @@ def _run(problem, sink: Sink, should_stop, resume) -> Result:
                 break
         if res.status == "running":
             res.status = "completed"
-            sink.checkpoint(state(len(problem.steps) - 1), "completed")
+            sink.checkpoint(lambda: state(len(problem.steps) - 1), "completed")
     except RunStopped as exc:
         res.status, res.message = "failed", str(exc)
     res.t = t
