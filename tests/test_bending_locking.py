@@ -52,14 +52,18 @@ def check_cantilever(eg, slender, ratio):
 def test_cantilever_tip_deflection_matches_timoshenko(eg, slender, ratio):
     """Requirement: a cantilever of `ans` hexahedra (four through the thickness, elements 2 h long, at least five
     along) deflects within 3 % of Timoshenko's closed form (bimodular: shifted neutral axis, energy-consistent shear
-    coefficient) for E_fibre / G from 1e-1 to 1e5, symmetric and bimodular (1 %) fibres: no shear locking."""
+    coefficient) for E_fibre / G from 1e-1 to 1e5, symmetric and bimodular (1 %) fibres: no shear locking.
+    Measured ans / Timoshenko: 0.986-0.998 symmetric and 1.008-1.025 bimodular where bending carries >= 40 % of
+    the deflection; in the shear-dominated cases (share >= 0.6) 0.64-0.985, equal to `full` within 0.1 % (the
+    warping of a 4-layer section, see ``check_cantilever``)."""
     check_cantilever(eg, slender, ratio)
 
 
 @pytest.mark.nightly
 @pytest.mark.parametrize("eg,slender,ratio", GRID_NIGHTLY)
 def test_slender_cantilever_tip_deflection_matches_timoshenko(eg, slender, ratio):
-    """Requirement: as the CI grid, at L/h = 200 (100 elements along; 3-12 s each)."""
+    """Requirement: as the CI grid, at L/h = 200 (100 elements along; 3-12 s each). Measured: symmetric 0.979-1.000,
+    bimodular 1.027-1.028 (the two-point integration of the layer holding the neutral axis)."""
     check_cantilever(eg, slender, ratio)
 
 
@@ -144,3 +148,22 @@ def test_stable_step_is_below_the_exact_critical_step(mat, shape_name, state):
     x = ts.deformed(X, state)
     ratio = ts.exact_critical_dt(X, g, x) / g.stable_dt()
     assert ratio >= 1.0, ratio
+
+
+@pytest.mark.nightly
+@pytest.mark.xfail(strict=True, reason="measured 2026-11-25 on the 3 mm deck: ans alone 1.99 mm, ans + fibre bending "
+                   "0.084 mm against F-bar + fibre bending 0.022 mm: the assumed shears remove the parasitic shear "
+                   "stiffness that also held back [B]'s spurious transverse modes")
+def test_three_point_bending_indicator_no_worse_than_fbar_with_fibre_bending():
+    """Requirement: on the 3 mm three-point-bending deck (F-bar + fibre bending), swapping the formulation for `ans`
+    does not raise the spurious-mode indicator above F-bar's (both runs made here, about 1 min each unloaded; 5 %
+    margin for the run-to-run difference of two explicit runs, which is a step-size effect)."""
+    from helpers import DECKS, deck_data, run_data
+
+    values = {}
+    for form in ("fbar", "ans"):
+        data = deck_data("three_point_bending/fbar_bending_3mm.yaml")
+        data["sections"][0]["formulation"] = form
+        problem, result, h = run_data(data, DECKS / "three_point_bending")
+        values[form] = h["spurious_mode_indicator"][-1]
+    assert values["ans"] <= 1.05 * values["fbar"], values
