@@ -105,14 +105,11 @@ def _claim_output(deck: Path, out: Path, overwrite: bool, keep: bool):
     except DeckError as exc:
         _err(format_problems(exc.problems))
         raise typer.Exit(2)
-    try:  # a restart's own checks (deck digest, appended steps) decide whose checkpoint may be continued
-        c = claim(out, deck, overwrite or keep)
+    try:
+        return claim(out, deck, overwrite, restart=keep)
     except OutdirError as exc:
         _err(f"{deck}: {exc}")
         raise typer.Exit(2)
-    if keep:
-        c.stale = []
-    return c
 
 
 def _after_first_frame(progress, hook):

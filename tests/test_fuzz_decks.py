@@ -62,7 +62,7 @@ def _shipped() -> list[Path]:
 
 DECK_FILES = _shipped()
 TINY = 500  # elements: above this a mutated deck is only read and checked, not compiled (CI time)
-RUN_SECONDS = 60  # time limit of one fuzzed run of at most 3 cycles per step (compile + frames), generous on a
+RUN_SECONDS = 120  # time limit of one fuzzed run of at most 3 cycles per step (compile + frames), generous on a
 #                   loaded 2-core machine; a hang is what it catches
 LOCATED = re.compile(r"^(?P<file>.+?):(?P<line>\d+):(?P<col>\d+): ")
 COUNT = {"validated": 0, "refused": 0, "run": 0}

@@ -9,10 +9,11 @@ of the files the run wrote. Before a run, ``claim`` decides:
   usual work): the run may write; the earlier run's files are kept until the new run has written its first frame
   (a deck that fails to compile leaves the old results intact), then those of them the new run did not rewrite
   are removed (``Claim.first_frame``), so the folder never mixes two runs;
+* ``--restart``: the checkpoint's own checks decide (see ``claim``);
 * folder marked by ANOTHER deck, or holding files that no fdeck run marked (results written before this marker
-  existed are recognised by their ``summary.json``'s ``deck``): refused, naming the other deck, unless
-  ``overwrite``; with ``overwrite`` the other run's listed files are removed after the first frame, and files fdeck
-  did not write are never removed.
+  existed are recognised by their ``summary.json``'s ``deck``, a relative path taken from the working folder):
+  refused, naming the other deck, unless ``overwrite``; with ``overwrite`` the other run's listed files are removed
+  after the first frame, and files fdeck did not write are never removed.
 
 Nothing outside the folder is ever written or removed: every removal is of a plain file, by a name listed in the
 marker, that resolves to a path directly inside the folder.
@@ -78,6 +79,7 @@ class Claim:
     stale: list[str]  # files of the earlier run to remove once the first frame is written
     before: dict[str, tuple[int, int]] = field(default_factory=dict)
     cleaned: bool = False
+    restart: bool = False  # continues the folder's run: its earlier files stay its own
 
     def _write_marker(self, files: list[str]) -> None:
         from fdeck import __version__
@@ -106,18 +108,29 @@ class Claim:
         return [n for n, st in _snapshot(self.out).items() if self.before.get(n) != st]
 
     def finish(self) -> None:
-        """Clean up (if no frame was reported) and list every file the run wrote in the marker."""
+        """Clean up (if no frame was reported) and list every file the run wrote (or, after a restart, every file
+        of the folder) in the marker."""
         self.first_frame()
-        self._write_marker(self._written())
+        if self.restart:  # the files the interrupted run listed, and what the continuation wrote
+            _, listed = _owner(self.out)
+            self._write_marker(sorted(set(listed) & set(_snapshot(self.out)) | set(self._written())))
+        else:
+            self._write_marker(self._written())
 
 
-def claim(out: Path, deck_path: Path, overwrite: bool = False) -> Claim:
+def claim(out: Path, deck_path: Path, overwrite: bool = False, restart: bool = False) -> Claim:
     """Decide whether the run of ``deck_path`` may write into ``out`` (see the module docstring); raise
-    ``OutdirError`` naming the other deck when it may not. Writes the marker when the folder is taken."""
+    ``OutdirError`` naming the other deck when it may not. Writes the marker when the folder is taken.
+
+    ``restart``: the run continues the folder's own run from a checkpoint, whose checks (deck digest, appended
+    steps) decide whose run may be continued: no ownership check, no file is stale, and the marker is rewritten
+    only by ``finish`` (a refused restart leaves it as it was)."""
     out, deck = Path(out), Path(deck_path).resolve()
     if out.exists() and not out.is_dir():
         raise OutdirError(f"output folder {out} is a file, not a folder")
     before = _snapshot(out)
+    if restart:
+        return Claim(out, deck, stale=[], before=before, cleaned=True, restart=True)
     owner, files = _owner(out) if out.is_dir() else (None, [])
     others = os.listdir(out) if out.is_dir() else []
     if owner is None and others and not overwrite:
