@@ -100,7 +100,7 @@ def deck_figures(deck, limits: Limits | None = None) -> list[tuple[tuple, str, s
 
 
 def _min_edge(problem) -> float:
-    """Smallest non-zero element edge [mm] over every group (hexahedra: 12 edges; shells: the node cycle)."""
+    """Smallest non-zero element edge [length] over every group (hexahedra: 12 edges; shells: the node cycle)."""
     out = math.inf
     for g in problem.groups:
         conn = np.asarray(g.conn)
@@ -119,7 +119,7 @@ def _min_edge(problem) -> float:
 
 
 def _speed(amplitude, value: float, kind: str, t0: float, t1: float) -> float:
-    """Largest |velocity| [mm/s] of a prescribed motion over [t0, t1]: |value a(t)| for a velocity, the largest
+    """Largest |velocity| [length/s] of a prescribed motion over [t0, t1]: |value a(t)| for a velocity, the largest
     finite-difference slope of value a(t) on 2000 intervals for a displacement."""
     t = np.linspace(t0, t1, 2001)
     a = np.array([amplitude(float(s)) for s in t]) * value
@@ -129,7 +129,7 @@ def _speed(amplitude, value: float, kind: str, t0: float, t1: float) -> float:
 
 
 def _motions(problem):
-    """(deck path, label, speed [mm/s]) of every prescribed translation."""
+    """(deck path, label, speed [length/s]) of every prescribed translation."""
     from fdeck.compile import amplitude
 
     deck = problem.deck
@@ -184,11 +184,12 @@ def problem_figures(problem, limits: Limits | None = None) -> list[tuple[tuple, 
                       f"{total * problem.n_element:.3g} element-cycles", "warning"))
     dt = min(dts) if dts else math.inf
     h = _min_edge(problem)
+    length = problem.deck.units.split("-")[0]  # mm or m
     if math.isfinite(dt) and dt > 0 and math.isfinite(h):
         for path, label, speed in _motions(problem):
             travel = speed * dt / h
-            message = (f"{label} moves up to {speed:.3g} mm/s, {travel:.3g} smallest element edges ({h:.3g} mm) "
-                       f"in one stable step of {dt:.3g} s")
+            message = (f"{label} moves up to {speed:.3g} {length}/s, {travel:.3g} smallest element edges ({h:.3g} "
+                       f"{length}) in one stable step of {dt:.3g} s")
             if travel > limits.max_travel:
                 found.append((path, message + f", above the limit {limits.max_travel:g}", "error"))
             elif travel > limits.warn_travel:
