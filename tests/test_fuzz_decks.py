@@ -149,12 +149,20 @@ def _located(stderr: str, path: Path) -> None:
         assert m and m["file"] == str(path), f"not located as file:line:col: {ln!r}"
 
 
+TINY_FILE = 64 * 1024  # bytes: mesh files up to this size are compiled too (the 3WEAVE bias mesh, 20 kB, some
+#                       200 elements; the bias shell coupon, 57 kB)
+
+
 def _small(path: Path) -> bool:
-    """The mutated deck reads, and its mesh is built-in and tiny (so compiling it costs little)."""
+    """The mutated deck reads, and its mesh is tiny (so compiling it costs little): a built-in mesh of at most
+    TINY elements, or a mesh file of at most TINY_FILE bytes (or a missing one)."""
     try:
         deck, _, _ = read_deck(path)
     except DeckError:
         return True  # refused before compiling: as cheap as it gets
+    if deck.mesh.file is not None:
+        mesh = Path(deck.mesh.file)
+        return not mesh.is_file() or mesh.stat().st_size <= TINY_FILE
     n = estimated_elements(deck)
     return n is not None and n <= TINY
 
