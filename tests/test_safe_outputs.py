@@ -162,3 +162,22 @@ def test_files_read_from_where_the_deck_says_and_printed_by_info(tmp_path, monke
     assert r.exit_code == 0, r.output
     assert f"reads mesh file: {(deck_dir / 'm.inp').resolve()}" in r.stdout
     assert "reads material 3weave preset 3weave: " in r.stdout and "presets/fabric_hyper/3weave.yaml" in r.stdout
+
+
+def test_results_without_marker_recognised_by_their_summary(tmp_path):
+    """Requirement: results written before the marker existed (no .fdeck-run) belong to the deck their summary.json
+    names: another deck is refused naming it; the same deck replaces them, its stale frames removed (reference: the
+    new a.pvd's file list) and a file fdeck did not write kept."""
+    import re
+
+    a, b = write(tmp_path / "a.yaml", bar(4)), write(tmp_path / "b.yaml", bar(1))
+    out = tmp_path / "out"
+    assert run(a, out).exit_code == 0
+    (out / MARKER).unlink()
+    (out / "notes.txt").write_text("mine")
+    r = run(b, out)
+    assert r.exit_code == 2 and str(a.resolve()) in r.stderr, r.output
+    write(a, bar(1))
+    assert run(a, out).exit_code == 0
+    listed = sorted(re.findall(r'file="([^"]+)"', (out / "a.pvd").read_text()))
+    assert sorted(p.name for p in out.glob("a_*.vtu")) == listed and (out / "notes.txt").exists()

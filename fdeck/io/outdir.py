@@ -61,12 +61,20 @@ def _owner(out: Path) -> tuple[str | None, list[str]]:
     summary = out / "summary.json"
     if summary.is_file():  # results written before the marker existed
         try:
-            deck = json.loads(summary.read_text(encoding="utf-8")).get("deck")
+            data = json.loads(summary.read_text(encoding="utf-8"))
+            deck, tables = data.get("deck"), [str(t) for t in data.get("tables", [])]
         except (OSError, ValueError, AttributeError):
-            deck = None
+            deck, tables = None, []
         if deck:
-            return str(Path(deck).resolve()), []
+            return str(Path(deck).resolve()), _legacy_files(out, Path(deck).stem, tables)
     return None, []
+
+
+def _legacy_files(out: Path, stem: str, tables: list[str]) -> list[str]:
+    """Files of a run that wrote no marker, recognised by the names fdeck gives them: ``<stem>.pvd|xdmf|h5``,
+    ``<stem>_*.vtu``, history.csv, summary.json and the tables its summary lists."""
+    known = {f"{stem}.pvd", f"{stem}.xdmf", f"{stem}.h5", "history.csv", "summary.json", *tables}
+    return [n for n in _snapshot(out) if n in known or (n.startswith(f"{stem}_") and n.endswith(".vtu"))]
 
 
 @dataclass
