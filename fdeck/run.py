@@ -18,6 +18,7 @@ from __future__ import annotations
 import hashlib
 import json
 import signal
+import threading
 import sys
 import time
 from pathlib import Path
@@ -242,13 +243,16 @@ def _resume_series(formats, out_dir: Path, name: str, problem, resume: dict) -> 
 
 
 class _Signals:
-    """SIGINT/SIGTERM set a flag the engine polls every cycle."""
+    """SIGINT/SIGTERM set a flag the engine polls every cycle. Off the main thread (a Dask worker runs tasks in
+    threads, where Python refuses ``signal.signal``) nothing is installed: the worker process owns its signals."""
 
     def __init__(self):
         self.received = None
+        self.saved = {}
 
     def __enter__(self):
-        self.saved = {s: signal.signal(s, self._handle) for s in (signal.SIGINT, signal.SIGTERM)}
+        if threading.current_thread() is threading.main_thread():
+            self.saved = {s: signal.signal(s, self._handle) for s in (signal.SIGINT, signal.SIGTERM)}
         return self
 
     def _handle(self, signum, frame):

@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import json
 import os
-import threading
 import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
@@ -33,19 +32,6 @@ RESULT = "result.json"
 
 def _init_worker():
     os.environ["NUMBA_NUM_THREADS"] = "1"
-
-
-class _NoSignals:
-    """Stand-in for ``fdeck.run._Signals`` off the main thread (Dask runs tasks in worker threads, where
-    ``signal.signal`` is refused); the worker process handles its own signals."""
-
-    received = None
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        return False
 
 
 _WARM: set[str] = set()  # skeletons of the decks this process has already warmed up
@@ -100,8 +86,6 @@ def run_task(task: dict) -> dict:
         from fdeck.deck.model import Deck, cross_reference_problems
 
         numba.set_num_threads(1)
-        if threading.current_thread() is not threading.main_thread():
-            run_mod._Signals = _NoSignals
         try:
             deck = Deck.model_validate(task["deck"])
         except ValidationError as exc:
