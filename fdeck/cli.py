@@ -250,13 +250,15 @@ def info(deck: Path = typer.Argument(..., help="Deck file.")):
 
 
 @app.command()
-def schema(out: Path = typer.Option(Path("schemas"), "--out", help="Folder for deck.schema.json.")):
-    """Write the deck's JSON schema (for editors: yaml-language-server)."""
+def schema(out: Path = typer.Option(Path("schemas"), "--out", help="Folder for the *.schema.json files.")):
+    """Write the JSON schemas of decks, study files and identification files (for editors: yaml-language-server)."""
     from fdeck.deck.schema import deck_schema
+    from fdeck.study.models import json_schemas
 
     out.mkdir(parents=True, exist_ok=True)
-    (out / "deck.schema.json").write_text(json.dumps(deck_schema(), indent=1, sort_keys=True) + "\n")
-    typer.echo(f"wrote {out / 'deck.schema.json'}")
+    for name, schema_dict in {"deck.schema.json": deck_schema(), **json_schemas()}.items():
+        (out / name).write_text(json.dumps(schema_dict, indent=1, sort_keys=True) + "\n")
+        typer.echo(f"wrote {out / name}")
 
 
 @app.command()

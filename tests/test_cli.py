@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
 from helpers import DECKS, ROOT
 
@@ -216,16 +217,23 @@ def test_info_reports_sizes_step_and_effects():
 
 
 def test_schema_is_current(tmp_path):
-    """Requirement: the committed schemas/deck.schema.json equals what `fdeck schema` writes now."""
+    """Requirement: the committed schemas/*.schema.json (deck, study, identification) equal what `fdeck schema`
+    writes now."""
     r = fdeck("schema", "--out", tmp_path)
-    assert r.returncode == 0
-    assert (tmp_path / "deck.schema.json").read_text() == (ROOT / "schemas" / "deck.schema.json").read_text(), \
-        "schema is stale: run `fdeck schema` and commit schemas/deck.schema.json"
+    assert r.returncode == 0, r.stderr
+    for name in ("deck.schema.json", "study.schema.json", "ident.schema.json"):
+        assert (tmp_path / name).read_text() == (ROOT / "schemas" / name).read_text(), \
+            f"schema is stale: run `fdeck schema` and commit schemas/{name}"
 
 
 def test_decks_start_with_schema_line():
+    """Requirement: every shipped deck, study and identification file names its JSON schema on its first line (an
+    editor validates it as it is typed), and the schema it names is the one for its kind of file."""
     for d in list(DECKS.glob("**/*.yaml")):
         if d.name in ("spec.yaml", "summary.yaml"):
             continue
+        data = yaml.safe_load(d.read_text())
+        kind = "deck" if "mesh" in data else "study" if "quantities" in data else "ident"
         first = d.read_text().splitlines()[0]
-        assert first.startswith("# yaml-language-server: $schema=") and first.endswith("schemas/deck.schema.json"), d
+        assert first.startswith("# yaml-language-server: $schema="), d
+        assert first.endswith(f"schemas/{kind}.schema.json"), d

@@ -187,3 +187,16 @@ def load(path: str | Path, model_cls):
         return model_cls.model_validate(data), locs
     except ValidationError as exc:
         raise DeckError(problems_from_validation_error(exc, locs, str(path), model_cls)) from None
+
+
+def json_schemas() -> dict[str, dict]:
+    """JSON schemas of the study and identification files, by file name (``fdeck schema`` writes them beside the
+    deck's, for editors: a file's first line ``# yaml-language-server: $schema=.../study.schema.json``)."""
+    out = {}
+    for name, cls, title in (("study.schema.json", StudySpec, "fdeck study"),
+                             ("ident.schema.json", IdentSpec, "fdeck identify")):
+        s = cls.model_json_schema()
+        s["$schema"] = "https://json-schema.org/draft/2020-12/schema"
+        s["title"] = title
+        out[name] = s
+    return out
