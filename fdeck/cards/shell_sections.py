@@ -44,13 +44,22 @@ class _ShellSection(SectionBase):
         return self
 
 
+class _DirectorSection(_ShellSection):
+    normal_stiffness: float = Field(0.0, ge=0.0, description=(
+        "k_n [N/mm]: ties each nodal director to the nodal normal of the mid-surface (area-weighted normal of the "
+        "section's elements at the node) by an energy k_n A_a (1 - d_a . n_a) per node (A_a its tributary area), "
+        "about 1/2 k_n A_a theta^2: a transverse shear of the director against the surface normal instead of "
+        "against the element edges (MITC4), which lets an element-scale zig-zag of the mid-surface turn the "
+        "directors without limit. 0 (default) switches it off."))
+
+
 class MembraneSection(_ShellSection):
     """Membrane: the fabric in-plane law at the mid-surface, no bending, no rotational dofs."""
 
     formulation: Literal["membrane"]
 
 
-class SmSection(_ShellSection):
+class SmSection(_DirectorSection):
     """Shell-membrane hybrid of [J]: fabric law at the mid-surface plus decoupled orthotropic elastic bending
     (D11 = D22 = EI, D66 = GI per unit width), Kirchhoff-Love in effect (stiff transverse shear)."""
 
@@ -66,7 +75,7 @@ class SmSection(_ShellSection):
         "A_e / (alpha l^2)."))
 
 
-class TsSection(_ShellSection):
+class TsSection(_DirectorSection):
     """Thick shell of [J] (Reissner-Mindlin): the fabric law at `points` levels through the thickness plus
     transverse shear G13 = G23."""
 

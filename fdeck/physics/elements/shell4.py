@@ -39,6 +39,16 @@ thin-strip tests in tests/test_shell_verification.py). 2 x 2 integration of ever
 control, at about 4x the cost of one-point Belytschko-Tsay, which needs hourglass control (a source of
 mesh-dependent stiffness in soft fabrics) and is not objective under large in-plane shear without extra work.
 
+Director-normal tie (section key ``normal_stiffness`` k_n [N/mm], off by default): the MITC4 shear sees only the
+mean of an edge's two end directors, so along an element-scale zig-zag of the mid-surface consecutive directors may
+turn by the zig-zag's slope each, without bound and without shear energy (the spiral the square-tube flanges showed,
+directors 112-116 deg off the normal, det F <= 0); a dry fabric's bending stiffness and G13 are too small to stop it.
+The tie adds W_n = sum_a k_n A_a (1 - d_a . n_a) (about 1/2 k_n A_a theta_a^2: a transverse shear of the director
+against the surface normal, the same units as k_s) with n_a the unit nodal normal of the mid-surface (sum of the
+section's element vector areas (x_3 - x_1) x (x_4 - x_2) / 2 at the node), A_a the node's tributary area; its nodal
+forces by the chain rule through the vector areas, its moments -k_n A_a d_a x n_a, its energy the ledger part
+``director_normal_energy``. Exact derivatives and objectivity: tests/test_shell_director_tie.py.
+
 Masses: lumped row sums, m_a = rho h integral N_a dA (triangles: A/3 per node). Rotational inertia, lumped per node
 and scalar: I_a = m_a r_e^2 with r_e^2 = max(h^2/12, r_needed^2): h^2/12 is the physical rotary inertia of the
 section; r_needed (per element, from the rest state) makes every rotational stiffness of the element (sm bending,
@@ -66,6 +76,7 @@ import math
 import numpy as np
 
 from fdeck.compile.errors import CompileError
+from fdeck.engine.gather import gather_add
 from fdeck.engine.ledger import PART, STORED, Term
 from fdeck.jit import njit, njit_parallel, prange
 from fdeck.registry import FormulationKind, register_formulation
@@ -495,6 +506,72 @@ def element_dt(modulus, wz, fz, L0, inv_len2, C, rho, dt_e):
         dt_e[e] = 2.0 * math.sqrt(rho[e] / den) if den > 0.0 else np.inf
 
 
+@njit_parallel
+def tie_areas(x, conn, mask, out):
+    """out (n_el, 4, 3) = mask_a S_e: the element's vector area (x_3 - x_1) x (x_4 - x_2) / 2 at each slot [mm^2]."""
+    for e in prange(conn.shape[0]):
+        i0, i1, i2, i3 = conn[e, 0], conn[e, 1], conn[e, 2], conn[e, 3]
+        A0, A1, A2 = x[i2, 0] - x[i0, 0], x[i2, 1] - x[i0, 1], x[i2, 2] - x[i0, 2]
+        B0, B1, B2 = x[i3, 0] - x[i1, 0], x[i3, 1] - x[i1, 1], x[i3, 2] - x[i1, 2]
+        S0, S1, S2 = 0.5 * (A1 * B2 - A2 * B1), 0.5 * (A2 * B0 - A0 * B2), 0.5 * (A0 * B1 - A1 * B0)
+        for a in range(4):
+            out[e, a, 0] = mask[e, a] * S0
+            out[e, a, 1] = mask[e, a] * S1
+            out[e, a, 2] = mask[e, a] * S2
+
+
+@njit_parallel
+def tie_nodes(d, Sn, kappa, tied, v, m, e_node):
+    """Per tied node a: e_node = kappa (1 - d . n), v = dW/dS_a = -kappa (d - (d . n) n) / |S_a|, m = -kappa d x n
+    (n = S_a / |S_a|); d, Sn, v, m (n_node, 3); kappa (n_node,) [N mm]; tied (k,) node indices; e_node (k,)."""
+    for j in prange(tied.shape[0]):
+        a = tied[j]
+        Sm = math.sqrt(Sn[a, 0] ** 2 + Sn[a, 1] ** 2 + Sn[a, 2] ** 2)
+        n0, n1, n2 = Sn[a, 0] / Sm, Sn[a, 1] / Sm, Sn[a, 2] / Sm
+        d0, d1, d2 = d[a, 0], d[a, 1], d[a, 2]
+        k = kappa[a]
+        dot = d0 * n0 + d1 * n1 + d2 * n2
+        e_node[j] = k * (1.0 - dot)
+        v[a, 0] = -k * (d0 - dot * n0) / Sm
+        v[a, 1] = -k * (d1 - dot * n1) / Sm
+        v[a, 2] = -k * (d2 - dot * n2) / Sm
+        m[a, 0] = -k * (d1 * n2 - d2 * n1)
+        m[a, 1] = -k * (d2 * n0 - d0 * n2)
+        m[a, 2] = -k * (d0 * n1 - d1 * n0)
+
+
+@njit_parallel
+def tie_forces(x, conn, mask, v, fe):
+    """fe (n_el, 4, 3) += dW/dx through S_e: u = sum of v over the element's distinct nodes; slot 3 gets
+    B x u / 2, slot 1 minus it, slot 4 u x A / 2, slot 2 minus it (A = x_3 - x_1, B = x_4 - x_2)."""
+    for e in prange(conn.shape[0]):
+        u0 = 0.0
+        u1 = 0.0
+        u2 = 0.0
+        for a in range(4):
+            n = conn[e, a]
+            u0 += mask[e, a] * v[n, 0]
+            u1 += mask[e, a] * v[n, 1]
+            u2 += mask[e, a] * v[n, 2]
+        i0, i1, i2, i3 = conn[e, 0], conn[e, 1], conn[e, 2], conn[e, 3]
+        A0, A1, A2 = x[i2, 0] - x[i0, 0], x[i2, 1] - x[i0, 1], x[i2, 2] - x[i0, 2]
+        B0, B1, B2 = x[i3, 0] - x[i1, 0], x[i3, 1] - x[i1, 1], x[i3, 2] - x[i1, 2]
+        p0, p1, p2 = 0.5 * (B1 * u2 - B2 * u1), 0.5 * (B2 * u0 - B0 * u2), 0.5 * (B0 * u1 - B1 * u0)
+        q0, q1, q2 = 0.5 * (u1 * A2 - u2 * A1), 0.5 * (u2 * A0 - u0 * A2), 0.5 * (u0 * A1 - u1 * A0)
+        fe[e, 2, 0] += p0
+        fe[e, 2, 1] += p1
+        fe[e, 2, 2] += p2
+        fe[e, 0, 0] -= p0
+        fe[e, 0, 1] -= p1
+        fe[e, 0, 2] -= p2
+        fe[e, 3, 0] += q0
+        fe[e, 3, 1] += q1
+        fe[e, 3, 2] += q2
+        fe[e, 1, 0] -= q0
+        fe[e, 1, 1] -= q1
+        fe[e, 1, 2] -= q2
+
+
 # ----------------------------------------------------------------------------------------------------------------
 # Group
 # ----------------------------------------------------------------------------------------------------------------
@@ -563,6 +640,10 @@ class ShellGroup:
         # ledger: the whole stored energy, and the shares of bending and transverse shear where the section has them
         parts = ("bending_energy", "transverse_shear_energy") if self.formulation == "sm" else \
             ("transverse_shear_energy",) if self.formulation == "ts" else ()
+        self.kn = float(getattr(section, "normal_stiffness", 0.0)) if self.rotational else 0.0
+        self.e_n = 0.0  # director-normal energy [mJ] (``normal_stiffness``)
+        if self.kn > 0.0:
+            parts += ("director_normal_energy",)
         self.terms = (Term("strain_energy", STORED),) + tuple(Term(n, PART) for n in parts)
         if not self.has_dir:  # membrane: reference geometry from the element alone
             self._prepare(None)
@@ -669,8 +750,44 @@ class ShellGroup:
         self.r2 = r2
         self.fz = np.ascontiguousarray(1.0 + self.z[None, :] ** 2 / r2[:, None]) if self.rotational else \
             np.ones((n_el, len(self.z)))
+        if self.kn > 0.0:
+            # director-normal tie: rotational stiffness k_n A_a on I_a = rho h A_a r_e^2, and a translational one of
+            # about k_n A_a / L^2 through the normal's dependence on the nodes (bounded with a factor 4)
+            r2 = np.maximum(r2, self.kn / (self.h * BETA * lam_mem))
+            Ksx = Ksx + 4.0 * self.kn / (self.h * self.L0**2)
+            Ksd = Ksd + self.kn / self.h
+            self._normal_constants()
         self.C = np.ascontiguousarray((Kb + Ksd) / r2 + Ksx)
         self.added_rotational_inertia = float(r2.sum() / (n_el * self.h**2 / 12.0) - 1.0) if self.rotational else 0.0
+
+    def _normal_constants(self):
+        """kappa (n_node,) = k_n A_a [N mm] per node of the group; slot mask (n_el, 4): 0 on the repeated node of a
+        triangle (each distinct node of an element counted once)."""
+        n_node = len(self.ptr) - 1
+        self.slot_mask = np.ones(self.conn.shape)
+        self.slot_mask[self.conn[:, 2] == self.conn[:, 3], 3] = 0.0
+        area = np.zeros(n_node)
+        np.add.at(area, self.conn.ravel(), (self.mass_shape / self.h * self.slot_mask).ravel())
+        self.kappa = self.kn * area
+        self.tied = np.nonzero(area > 0.0)[0]
+        self.m_n = np.zeros((n_node, 3))
+        self._slot_S = np.zeros(self.conn.shape + (3,))
+        self._Sn = np.zeros((n_node, 3))
+        self._v = np.zeros((n_node, 3))
+        self._e_node = np.zeros(len(self.tied))
+
+    def _normal_tie(self, x, d):
+        """Energy k_n A_a (1 - d_a . n_a) summed over the group's nodes, n_a = S_a / |S_a| the unit nodal normal,
+        S_a the sum of the vector areas S_e = (x_3 - x_1) x (x_4 - x_2) / 2 of the section's elements at node a
+        (exact for a flat quadrilateral and for a triangle as a degenerate one). Adds its nodal forces dW/dx into
+        fe (chain rule through S_e: dS_e = (dA x B + A x dB) / 2 with A = x_3 - x_1, B = x_4 - x_2) and keeps the
+        nodal moments d_a x dW/dd_a = -kappa_a d_a x n_a in m_n (n_node, 3) [N mm]."""
+        tie_areas(x, self.conn, self.slot_mask, self._slot_S)
+        self._Sn.fill(0.0)
+        gather_add(self._slot_S, self.ptr, self.slots, self._Sn)
+        tie_nodes(d, self._Sn, self.kappa, self.tied, self._v, self.m_n, self._e_node)
+        self.e_n = float(self._e_node.sum())
+        tie_forces(x, self.conn, self.slot_mask, self._v, self.fe)
 
     def _shear_b(self, De):
         """Rest-state MITC maps at each Gauss point: cx, cd (n_el, 4 gp, 2 k, 4 nodes, 3) with
@@ -717,18 +834,20 @@ class ShellGroup:
         forces(x, d, self.conn, self.T, self.tau, self.z, self.w, self.e1, self.e2, self.P, self.psi, self.T0,
                self.tau0, self.aw, self.k0, self.bend, self.ks, self.gam0, self.has_dir, self.fe, self.ge, self.me,
                self.energy)
+        if self.kn > 0.0:
+            self._normal_tie(x, d)
 
     def add_forces(self, f_int):
-        from fdeck.engine.gather import gather_add
-
         gather_add(self.fe, self.ptr, self.slots, f_int)
         if self.has_dir:
             gather_add(self.me, self.ptr, self.slots, self.rot.m_int)
+            if self.kn > 0.0:
+                self.rot.m_int += self.m_n
 
     def term_values(self) -> tuple[float, ...]:
         """Stored energy [mJ] (the law's sum w psi + bending + transverse shear), then the shares in ``terms``."""
-        share = {"bending_energy": self.e_b, "transverse_shear_energy": self.e_s}
-        return (float(self.energy.sum()),) + tuple(float(share[t.name].sum()) for t in self.terms[1:])
+        share = {"bending_energy": self.e_b, "transverse_shear_energy": self.e_s, "director_normal_energy": self.e_n}
+        return (float(self.energy.sum()) + self.e_n,) + tuple(float(np.sum(share[t.name])) for t in self.terms[1:])
 
     def set_density(self, rho: np.ndarray) -> None:
         self.rho = np.ascontiguousarray(rho, float)
