@@ -1,9 +1,8 @@
-"""Double-dome forming decks (decks/forming/double_dome_*.yaml): the coarse 0/90 deck run through the CLI, its
-history checked against independent references (energy conservation, contact kinematics, the die geometry).
-
-One run of about 2 minutes on one core (module fixture), in the nightly tier (`pytest -m nightly`): over CI's
-budget, and the coarse deck does not yet pass its quasi-static check (see the xfail); every deck is validated in
-the default run.
+"""Double-dome forming decks (decks/forming/double_dome_*.yaml): every deck validated, and the coarse 0/90 deck run
+through the CLI (module fixture, one run of about 50 CPU-seconds on one core, default tier), its history and
+frames checked against independent references: the energy conservation law, Newton's law on the force-driven
+blank holder, contact kinematics (the punch's initial gap), the die geometry (draw-in) and the warp's tensile
+stiffness (formed length along the symmetry line).
 """
 
 from __future__ import annotations
@@ -12,10 +11,10 @@ import csv
 import os
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
 from tests.helpers import ROOT
 
@@ -23,6 +22,10 @@ DECKS = sorted((ROOT / "decks" / "forming").glob("double_dome_*.yaml"))
 COARSE = ROOT / "decks" / "forming" / "double_dome_090_coarse.yaml"
 GAP0 = 0.2     # punch's lowest point above the blank's top face at t = 0 [mm] (deck: offset -4.76 of 7.6 - 2.64)
 C0 = 0.1       # exponential law clearance [mm]: no pressure while the gap exceeds c0
+
+
+def _deck():
+    return yaml.safe_load(COARSE.read_text())
 
 
 @pytest.fixture(scope="module")
@@ -44,46 +47,70 @@ def test_decks_validate():
     assert r.returncode == 0, r.stdout + r.stderr
 
 
-@pytest.mark.nightly
-def test_coarse_runs_to_the_end_with_energy_conserved(run):
-    """Requirement: the coarse 0/90 deck completes (exit 0, or 3 for a failed check only) and its energy balance,
-    recomputed from the history columns (kinetic + internal (which holds the contact energy) + damping + friction
-    dissipation - external work - work of the tools on the blank), stays below 1 % of the largest energy: the
-    conservation law, independent of the solver's own error column (which it must also match to 1e-6 of the
-    scale, rounding of the CSV)."""
+def test_coarse_run_is_quasi_static_and_conserves_energy(run):
+    """Requirement: the coarse 0/90 deck exits 0 (both its checks pass), and from the history columns, independent
+    of the checks' code: (a) kinetic / internal energy of the blank stays below 5 % after the first quarter of the
+    run (the published quasi-static criterion, MODELS 6.4); (b) the conservation law kinetic + internal (which
+    holds the contact energy) + damping + friction dissipation - external work - work of every tool on the blank
+    (punch, die, holder) stays below 1 % of the largest energy, and matches the solver's own error column to 1e-6
+    of that scale (the CSV's rounding)."""
     r, h, _ = run
-    assert r.returncode in (0, 3), r.stdout[-2000:] + r.stderr[-2000:]
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
+    late = h["time"] >= 0.25 * h["time"][-1]
+    ratio = h["kinetic_energy"][late] / np.maximum(h["internal_energy"][late], 1e-300)
+    assert ratio.max() < 0.05, ratio.max()
+    tools = [k for k in h if k.startswith("tool_work_")]
+    assert sorted(tools) == ["tool_work_die", "tool_work_holder", "tool_work_punch"]
     bal = (h["kinetic_energy"] + h["internal_energy"] + h["damping_energy"] + h["friction_dissipation"]
-           - h["external_work"] - h["tool_work_punch"] - h["tool_work_die"])
+           - h["external_work"] - sum(h[k] for k in tools))
     scale = max(np.abs(h["kinetic_energy"]).max(), np.abs(h["internal_energy"]).max())
     assert np.abs(bal).max() / scale < 0.01
     assert np.abs(bal - h["energy_balance_error"]).max() / scale < 1e-6
 
 
-@pytest.mark.nightly
 def test_punch_force_zero_before_contact_and_pushing_after(run):
     """Requirement: the punch exerts no force while its gap to the blank exceeds the law's clearance c0 (the
     punch starts GAP0 = 0.2 mm above the blank: travel below GAP0 - c0 = 0.1 mm, minus 0.02 mm for the blank's
-    own motion being nil before contact), and pushes the blank down (force on the blank along -z, below -1 N) over
-    the last tenth of the stroke, where the blank is drawn into the 60 mm deep die."""
+    own settling under the holder), and pushes the blank down (force on the blank along -z, below -1 N) over the
+    last tenth of the stroke, where the blank is drawn into the 60 mm deep die; the punch follows the deck's
+    tabular stroke history (linear interpolation of its knots, evaluated here with numpy at each row's time) to
+    1e-9 of the stroke, and the last row (up to T/200 before the end, on the deceleration) has 99 % of it."""
     _, h, _ = run
+    deck = _deck()
+    stroke = deck["tools"]["punch"]["motion"]["value"]
+    knots = np.array(deck["amplitudes"]["stroke"]["points"])
     travel = -h["tool_punch_displacement_z"]
+    assert np.abs(travel - stroke * np.interp(h["time"], knots[:, 0], knots[:, 1])).max() < 1e-9 * stroke
+    assert travel[-1] >= 0.99 * stroke
     before = travel < GAP0 - C0 - 0.02
     assert before.sum() >= 2
     assert np.abs(h["tool_punch_force_z"][before]).max() < 1e-9
     late = travel > 0.9 * travel.max()
-    # history rows lie T/200 apart and the punch ends at about 270 mm/s: the last row may miss up to 0.4 mm
-    assert travel.max() == pytest.approx(60.24, abs=1.0)
     assert h["tool_punch_force_z"][late].max() < -1.0
 
 
-@pytest.mark.nightly
+def test_holder_presses_the_flange_with_its_force(run):
+    """Requirement: the force-driven holder (mass M, force F along -z) presses the blank with F: Newton's law on the
+    holder gives the time mean of its contact force over [t0, t1] as F - M (V1 - V0) / (t1 - t0), which over the
+    middle half of the run (holder settled, flange under it) is F within M * 2 * 50 mm/s / (T/2) < 0.01 N; the
+    force is sampled on history rows (T/200 apart) while it rings by about +-10 % around F, so the mean of ~100
+    sampled rows is asserted to 5 % of F."""
+    _, h, _ = run
+    mo = _deck()["tools"]["holder"]["motion"]
+    T = h["time"][-1]
+    mid = (h["time"] >= 0.25 * T) & (h["time"] <= 0.75 * T)
+    assert mid.sum() >= 50
+    mean = h["tool_holder_force_z"][mid].mean()  # force of the holder on the blank: along -z
+    assert mean == pytest.approx(-mo["value"], rel=0.05), mean
+    assert np.abs(h["tool_holder_velocity"][mid]).max() < 50.0
+
+
 def test_draw_in_matches_the_die_profile(run):
     """Requirement: along the symmetry line y = 0 the warp (x) is nearly inextensible, so the free edge's draw-in
     at the end is AT LEAST the extra length the formed blank needs over the die there: arc length of the die
     profile z(x, 0) (generators.double_dome_surface, independent of the run) minus its chord, x from 0 to 160 mm
-    (past the flange entry). Lower bound only: the lobes beside the line pull more material in (measured 19 mm
-    against 8.3 mm). Tolerance: the warp may stretch up to 1 % over the 160 mm (1.6 mm)."""
+    (past the flange entry). Lower bound only: the lobes beside the line pull more material in. Tolerance: the
+    warp may stretch up to 1 % over the 160 mm (1.6 mm)."""
     import meshio
 
     from fdeck.physics.tools.generators import double_dome_surface
@@ -97,17 +124,21 @@ def test_draw_in_matches_the_die_profile(run):
     m0, m1 = meshio.read(frames[0]), meshio.read(frames[-1])
     edge = np.flatnonzero((np.abs(m0.points[:, 0] - 300.0) < 1e-6) & (np.abs(m0.points[:, 1]) < 1e-6))
     draw = -m1.point_data["displacement"][edge, 0].mean()
-    assert draw >= ref - 0.01 * 160.0
+    assert draw >= ref - 0.01 * 160.0, (draw, ref)
     assert h["draw_in_x_max"][-1] >= draw - 1e-6  # the measure's largest edge draw-in covers this node's
 
 
-@pytest.mark.nightly
-@pytest.mark.xfail(strict=True, reason="coarse deck's 0.3 s stroke is not quasi-static (kinetic/internal 1-3 "
-                   "mid-stroke); a passing run needs about 3 s (see the deck's comment)")
-def test_coarse_quasi_static(run):
-    """Requirement: after the first quarter of the run, kinetic / internal energy of the blank stays below 5 % (the
-    published quasi-static criterion, MODELS 6.4), recomputed from the history."""
-    _, h, _ = run
-    late = h["time"] >= 0.25 * h["time"][-1]
-    ratio = h["kinetic_energy"][late] / np.maximum(h["internal_energy"][late], 1e-300)
-    assert ratio.max() < 0.05
+def test_warp_and_weft_do_not_stretch_along_the_symmetry_lines(run):
+    """Requirement: the formed length of the 300 mm material lines on the symmetry planes (path_symmetry_x/y.csv,
+    current positions of the mid-surface points) does not exceed 300 mm by more than 1 %: the fibres along them
+    are three orders stiffer in tension than the fabric in shear and compaction (3WEAVE preset), and the holder's
+    100 N with friction 0.2 loads them far below 1 % strain. (Shorter is allowed: a dry fabric buckles in
+    compression and the sampled polyline cuts the element corners.) And the line still reaches into the die: its
+    lowest point lies below z = -20 mm (the die is 60 mm deep; the saddle at the centre 33 mm)."""
+    _, _, out = run
+    for name in ("symmetry_x", "symmetry_y"):
+        rows = list(csv.DictReader(open(out / f"path_{name}.csv")))
+        xyz = np.array([[float(r[k]) for k in "xyz"] for r in rows])
+        length = np.linalg.norm(np.diff(xyz, axis=0), axis=1).sum()
+        assert length <= 300.0 * 1.01, (name, length)
+        assert xyz[:, 2].min() < -20.0, (name, xyz[:, 2].min())
