@@ -1,5 +1,5 @@
 """Double-dome forming decks (decks/forming/double_dome_*.yaml): every deck validated, and the coarse 0/90 deck run
-through the CLI (module fixture, one run of about 50 CPU-seconds on one core, default tier), its history and
+through the CLI (module fixture, one run of about 61 CPU-seconds on one core, default tier), its history and
 frames checked against independent references: the energy conservation law, Newton's law on the force-driven
 blank holder, contact kinematics (the punch's initial gap), the die geometry (draw-in) and the warp's tensile
 stiffness (formed length along the symmetry line).

@@ -1,6 +1,6 @@
-"""Tetrahedron punch decks (decks/forming/tetrahedron_*.yaml, MODELS.md 6.4): validation, tool file, and the
-coarse deck's run (nightly: it takes minutes, see the deck's header) checked against the punch geometry, the
-energy the punch puts in and the fibres' inextensibility."""
+"""Tetrahedron punch decks (decks/forming/tetrahedron_*.yaml, MODELS.md 6.4): validation, tool files, and the
+coarse deck's run (nightly: about 180 CPU-seconds, see the deck's header) checked against the punch geometry, the
+energy the punch and the holder put in and the fibres' inextensibility."""
 
 from __future__ import annotations
 
@@ -34,9 +34,9 @@ def _block(path):
 
 
 def test_decks_validate_and_info_names_tools_and_pairs():
-    """Requirement: every tetrahedron deck validates (exit 0) and `fdeck info` prints the punch and the die and one
-    contact pair per tool whose blank-node count is the block's exterior node count, (nx+1)(ny+1)(nz+1) -
-    (nx-1)(ny-1)(nz-1) (exact integer: contact acts on every exterior node by default)."""
+    """Requirement: every tetrahedron deck validates (exit 0) and `fdeck info` prints the punch, the die and the
+    force-driven holder, and one contact pair per tool whose blank-node count is one face of the block,
+    (nx+1)(ny+1) (exact integer: the top face zmax meets punch and holder, the bottom face zmin the die)."""
     assert len(TETRA) == 3
     r = _cli("validate", *map(str, TETRA), timeout=300)
     assert r.returncode == 0, r.stdout + r.stderr
@@ -45,11 +45,12 @@ def test_decks_validate_and_info_names_tools_and_pairs():
         assert r.returncode == 0, r.stdout + r.stderr
         assert "tool punch: mesh 'tools/tetrahedron_punch_whole.stl', displacement 65 mm" in r.stdout
         assert "tool die: mesh 'tools/tetrahedron_die.stl', fixed" in r.stdout
+        assert "tool holder: mesh 'tools/tetrahedron_holder.stl', force 200 N" in r.stdout
         nx, ny, nz = _block(path)["divisions"]
-        exterior = (nx + 1) * (ny + 1) * (nz + 1) - max(nx - 1, 0) * max(ny - 1, 0) * max(nz - 1, 0)
-        for tool in ("punch", "die"):
+        face = (nx + 1) * (ny + 1)
+        for tool in ("punch", "die", "holder"):
             m = re.search(rf"contact with tool '{tool}': (\d+) blank nodes", r.stdout)
-            assert m and int(m.group(1)) == exterior, (path.name, tool, r.stdout)
+            assert m and int(m.group(1)) == face, (path.name, tool, r.stdout)
 
 
 def test_whole_punch_file_is_the_generator_punch():
@@ -68,6 +69,27 @@ def test_whole_punch_file_is_the_generator_punch():
     assert abs(m.points[:, 2].min() - (-60.0 + LIFT)) < 1e-4
     assert abs(np.abs(m.points[:, 1]).max() - (265.0 / 2 + 10.0 + 4.0)) < 1e-4
     assert abs(m.points[:, 1].min() + m.points[:, 1].max()) < 1e-4
+
+
+def test_holder_file_is_the_die_flange_turned_over():
+    """Requirement: tools/tetrahedron_holder.stl is generators.flange_holder of the generator's die (h = 4 mm): the
+    die triangles lying on the flange plane z = 0 (exact count), every point at z = 0 (1e-6 mm: float32 STL), and
+    every normal pointing down (-z to 1e-9: a holder presses from above), so the holder covers the flange up to
+    where the die's entry radius starts and never the radius."""
+    import meshio
+
+    from fdeck.physics.tools.generators import flange_holder, tetrahedron
+
+    p, t = tetrahedron(part="die", h=4.0)
+    flat = (np.abs(p[t, 2]) <= 1e-9).all(axis=1)
+    P, T = flange_holder(p, t)
+    m = meshio.read(FORMING / "tools" / "tetrahedron_holder.stl")
+    tri = m.cells_dict["triangle"]
+    assert len(tri) == len(T) == int(flat.sum()) > 0
+    assert np.abs(m.points[:, 2]).max() < 1e-6
+    n = np.cross(m.points[tri[:, 1]] - m.points[tri[:, 0]], m.points[tri[:, 2]] - m.points[tri[:, 0]])
+    n /= np.linalg.norm(n, axis=1)[:, None]
+    assert np.abs(n[:, 2] + 1.0).max() < 1e-9
 
 
 # -- the coarse run ---------------------------------------------------------------------------------------------
@@ -94,13 +116,17 @@ def _punch_profile(n=4001):
 
 @pytest.mark.nightly
 def test_coarse_run_energy_put_in_by_the_punch(coarse_run):
-    """Requirement: the work of the punch integrated from the history's force and displacement columns (trapezoid
-    rule on the deck's 2000 rows, independent of the ledger's own term) equals kinetic + strain + contact energy
-    + friction dissipation to 1 % of the work (the deck's energy_balance limit; on 200 rows the sampled force
-    chatters enough to put the trapezoid 1.1 % off the ledger's work), and the energy_balance check passes."""
+    """Requirement: the work of the punch and of the holder integrated from the history's force and displacement
+    columns (trapezoid rule on the deck's 400 rows, independent of the ledger's own terms) equals kinetic + strain +
+    contact energy + friction dissipation to 1 % of the work (the deck's energy_balance limit; measured 3.3e-3 on
+    400 rows: the sampled force chatters between rows), and the energy_balance check passes."""
     r, h, _, s = coarse_run
-    fz, uz = h["tool_punch_force_z"], h["tool_punch_displacement_z"]
-    work = np.concatenate([[0.0], np.cumsum(0.5 * (fz[1:] + fz[:-1]) * np.diff(uz))])
+
+    def trapezoid(f, u):
+        return np.concatenate([[0.0], np.cumsum(0.5 * (f[1:] + f[:-1]) * np.diff(u))])
+
+    work = (trapezoid(h["tool_punch_force_z"], h["tool_punch_displacement_z"])
+            + trapezoid(h["tool_holder_force_z"], h["tool_holder_displacement_z"]))
     held = h["kinetic_energy"] + h["strain_energy"] + h["contact_energy"] + h["friction_dissipation"]
     assert work[-1] > 0.0
     err = np.abs(held - work).max() / work[-1]
@@ -112,13 +138,13 @@ def test_coarse_run_energy_put_in_by_the_punch(coarse_run):
 def test_coarse_run_punch_force_starts_at_contact(coarse_run):
     """Requirement: the punch's force on the blank is exactly zero while its lowest point (5 mm - u above the
     flange) stays above the blank's top face (c0 + 2.54 mm) plus the law's clearance c0 = 0.1 mm, i.e. for
-    u < 5 - 2.74 = 2.26 mm, and pushes down (F_z < 0) at full stroke (last history row: u = 65 mm to 1e-3 mm, the
-    smooth amplitude's flat end)."""
+    u < 5 - 2.74 = 2.26 mm, and pushes down (F_z < 0) at full stroke (last history row: u = 65 mm to 0.05 mm, the
+    stroke history decelerating to rest; the last row lies up to T/400 before the end)."""
     _, h, _, _ = coarse_run
     u, fz = -h["tool_punch_displacement_z"], h["tool_punch_force_z"]
     before = u < 5.0 - (0.1 + 2.54 + 0.1)
     assert before.sum() >= 5 and np.all(fz[before] == 0.0)
-    assert abs(u[-1] - 65.0) < 1e-3 and fz[-1] < 0.0
+    assert abs(u[-1] - 65.0) < 0.05 and fz[-1] < 0.0
 
 
 @pytest.mark.nightly
@@ -153,8 +179,9 @@ def test_coarse_run_blank_wraps_the_punch(coarse_run):
 
 
 @pytest.mark.nightly
-@pytest.mark.xfail(strict=True, reason="measured 0.21 at 32 % of the run (deck header; 0.11 at 0.8 s, "
-                   "0.070 at 1.6 s): kinetic bursts that a slower punch does not remove")
+@pytest.mark.xfail(strict=True, reason="measured 0.0517 (limit 0.05) with the holder and the designed stroke: one "
+                   "burst at 17 mm of travel, elsewhere below 0.026; a 1.35x slower punch there moved the burst "
+                   "(0.0502 -> 0.0517), it did not remove it (deck header)")
 def test_coarse_run_is_quasi_static(coarse_run):
     """Requirement (MODELS 6.4): kinetic / internal energy of the blank below 5 % after the first quarter of the
     run, recomputed from history.csv, and the run exits 0."""

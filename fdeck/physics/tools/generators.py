@@ -384,3 +384,13 @@ def tetrahedron(part="punch", half=True, h=4.0, h_coarse=25.0, side=265.0, core_
         keep = (pts[tri, 2] >= -wall_cut).any(axis=1)
         return _drop_degenerate(pts, tri[keep])
     raise ValueError(f"tetrahedron: unknown part {part!r} (punch, die)")
+
+
+def flange_holder(points, triangles, level=0.0, tol=1e-9):
+    """Blank holder matching a die's flat flange: the die triangles (``points`` (n, 3), ``triangles`` (m, 3), normals
+    up) whose three corners lie on the flange plane z = ``level`` (within ``tol`` mm), turned over (normals down),
+    as an open sheet at the same height; a deck lifts it by the blank thickness plus clearance (``offset``). Its
+    opening is the die's opening up to where the entry radius starts (the staircase of the die's grid there), so the
+    holder presses the flange and never the radius. Returns (points, triangles)."""
+    flat = (np.abs(points[triangles, 2] - level) <= tol).all(axis=1)
+    return _drop_degenerate(points, triangles[flat][:, ::-1])
