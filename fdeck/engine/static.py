@@ -1,0 +1,281 @@
+"""Static equilibrium of a compiled deck: load-stepped Newton with a coloured finite-difference tangent.
+
+What it solves: find x (n_node, 3) [mm] with f_int(x) = lambda f_ext on the free dofs, lambda from 0 to 1, where
+f_int [N] sums the element groups' forces and the effects whose forces have the resisting sign (``forces =
+"internal"``: section add-ons such as ``fibre_bending``, springs), f_ext [N] the external loads (gravity, nodal
+forces) at the end of the deck's last step, and the dofs that the deck's boundary cards prescribe are held at the
+position they prescribe at that time. Damping forces vanish at rest and are left out. Not supported (ValueError):
+rotational dofs (shells), effects with bodies of their own (tools), loads that depend on x.
+
+Tangent: K = d f_int / dx by central differences of f_int, compressed by colouring (A.R. Curtis, M.J.D. Powell,
+J.K. Reid, On the estimation of sparse Jacobian matrices, IMA J. Appl. Math. 13, 1974): two free dofs share a colour
+when no force component depends on both, so perturbing every dof of one colour at once and differencing gives all
+their columns from two force evaluations. The pattern comes from the connectivity (``pattern``): an element group
+couples the nodes of each element; a section add-on (an effect with a ``group``) may couple the nodes of
+neighbouring elements (``fibre_bending``'s hinges span two elements sharing a face), so it is given the nodes of
+every pair of elements that share a node; other internal effects are taken as nodal. ``probe_pattern`` finds the
+pattern of a small problem column by column, to check the connectivity pattern against (tests).
+
+Load stepping: increments of lambda grow after an increment converging in few iterations and are halved after one
+that fails (no convergence, a non-finite force, an inverted element).
+
+Shapes: dofs numbered 3 node + component; x, X (n_node, 3) [mm]; forces (n_node, 3) [N]; K (n_free, n_free) [N/mm].
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spl
+
+from fdeck.engine.ledger import STORED
+
+
+@dataclass
+class StaticResult:
+    x: np.ndarray  # (n_node, 3) equilibrium positions [mm]
+    converged: bool
+    load_factor: float  # lambda reached
+    increments: int
+    iterations: int  # Newton iterations in all
+    force_calls: int
+    colours: int
+    wall: float  # [s]
+    history: list = field(default_factory=list)  # (lambda, iterations) per converged increment
+
+
+class StaticProblem:
+    """f_int(x), f_ext, the held dofs and their positions for a compiled ``Problem``."""
+
+    def __init__(self, problem):
+        if problem.rotations is not None:
+            raise ValueError("static solve: rotational dofs (shells) are not supported")
+        if any(e.moves for e in problem.effects):
+            raise ValueError("static solve: effects with bodies of their own (tools) are not supported")
+        self.problem, self.X = problem, problem.X
+        self.n = len(problem.X)
+        k = len(problem.steps) - 1
+        self.t = problem.duration  # loads and prescribed positions at the end of the last step
+        plan = problem.steps[k]
+        for g, rho in zip(problem.groups, plan.rho):
+            g.set_density(rho)
+        for e in problem.effects:
+            e.begin_step(k, plan)
+        self.internal = [e for e in problem.effects if e.forces == "internal"]
+        external = [e for e in problem.effects if e.forces == "external"]
+        self.f_ext = np.zeros((self.n, 3))
+        for e in external:
+            e.add_force(self.t, self.X, np.zeros((self.n, 3)), self.f_ext)
+        f2 = np.zeros((self.n, 3))
+        for e in external:  # loads must not depend on x: evaluate them at a displaced state too
+            e.add_force(self.t, self.X + 1.0, np.zeros((self.n, 3)), f2)
+        if not np.allclose(f2, self.f_ext, rtol=1e-12, atol=0.0):
+            raise ValueError("static solve: a load depends on the positions (follower load), not supported")
+        self.held, self.x_held = self._held()
+        self.free = np.flatnonzero(~self.held)
+        self.calls = 0
+        self._zero = np.zeros((self.n, 3))
+
+    def _held(self):
+        """Dofs that the constraint effects overwrite (probed with two velocity fields: a held dof gets the same
+        value from both) and the positions they prescribe at t (x = X + 1 s v with dt = 1 s)."""
+        cons = [e for e in self.problem.effects if e.constrains]
+        va, vb = np.full((self.n, 3), 1.0), np.full((self.n, 3), 2.0)
+        for e in cons:
+            e.constrain(self.t, 1.0, self.X.copy(), va)
+            e.constrain(self.t, 1.0, self.X.copy(), vb)
+        held = (va == vb).ravel()
+        return held, (self.X + va).ravel()[held]
+
+    def f_int(self, x: np.ndarray) -> np.ndarray:
+        """(n_node, 3) resisting forces [N] at positions x (n_node, 3), at rest."""
+        self.calls += 1
+        f = np.zeros((self.n, 3))
+        for g in self.problem.groups:
+            g.update(x, self._zero)
+            g.add_forces(f)
+        for e in self.internal:
+            e.add_force(self.t, x, self._zero, f)
+        return f
+
+    def potential(self, x: np.ndarray, lam: float) -> float:
+        """Pi(x) = stored energy of the groups and internal effects at x - lam f_ext . (x - X) [mJ]."""
+        self.f_int(x)
+        stored = 0.0
+        for src in list(self.problem.groups) + self.internal:
+            stored += sum(v for t, v in zip(src.terms, src.term_values()) if t.kind == STORED)
+        return stored - lam * float(np.sum(self.f_ext * (x - self.X)))
+
+    def inverted(self) -> bool:
+        """True when an element of the last evaluated state has det F <= 0 (or NaN)."""
+        return any(not g.worst_jacobian()[0] > 0.0 for g in self.problem.groups)
+
+    # -------------------------------------------------------------------------------------------------- pattern
+    def pattern(self) -> sp.csr_matrix:
+        """(n_node, n_node) boolean node coupling from the connectivity (see the module docstring)."""
+        rows, cols = [], []
+        n = self.n
+        for g in self.problem.groups:
+            c = np.asarray(g.conn)
+            rows.append(np.repeat(c, c.shape[1], axis=1).ravel())
+            cols.append(np.tile(c, (1, c.shape[1])).ravel())
+        for e in self.internal:
+            g = getattr(e, "group", None)
+            if g is None:
+                continue
+            c = np.asarray(g.conn)
+            A = sp.csr_matrix((np.ones(c.size), (np.repeat(np.arange(len(c)), c.shape[1]), c.ravel())),
+                              shape=(len(c), n))
+            E = (A @ A.T).tocsr()  # elements sharing a node
+            C = (A.T @ E @ A).tocoo()
+            rows.append(C.row)
+            cols.append(C.col)
+        rows.append(np.arange(n))
+        cols.append(np.arange(n))
+        r, c = np.concatenate(rows), np.concatenate(cols)
+        return sp.csr_matrix((np.ones(len(r), bool), (r, c)), shape=(n, n))
+
+    def dof_pattern(self, node_pattern: sp.csr_matrix) -> sp.csr_matrix:
+        """(n_free, n_free) boolean dof pattern of the free dofs."""
+        S = sp.kron(node_pattern.astype(np.int8), np.ones((3, 3), np.int8), format="csr")
+        return (S[self.free][:, self.free] != 0).tocsr()
+
+    def probe_pattern(self, x: np.ndarray | None = None, h: float = 1e-6) -> sp.csr_matrix:
+        """(n_free, n_free) boolean pattern found by perturbing each free dof alone (costly: for small checks)."""
+        x = self.X.copy() if x is None else x
+        f0 = self.f_int(x).ravel()[self.free]
+        rows, cols = [], []
+        for j, d in enumerate(self.free):
+            xp = x.copy().ravel()
+            xp[d] += h
+            df = self.f_int(xp.reshape(-1, 3)).ravel()[self.free] - f0
+            nz = np.flatnonzero(df != 0.0)
+            rows.append(nz)
+            cols.append(np.full(len(nz), j))
+        r, c = np.concatenate(rows), np.concatenate(cols)
+        m = len(self.free)
+        return sp.csr_matrix((np.ones(len(r), bool), (r, c)), shape=(m, m))
+
+    # ------------------------------------------------------------------------------------------------- tangent
+    @staticmethod
+    def colour(S: sp.csr_matrix) -> np.ndarray:
+        """(n_col,) colour of each column of pattern S: greedy colouring of the column-intersection graph S^T S
+        (columns sharing a nonzero row get different colours)."""
+        G = (S.T.astype(np.int32) @ S.astype(np.int32)).tocsr()
+        colours = np.full(S.shape[1], -1)
+        for j in range(S.shape[1]):
+            used = colours[G.indices[G.indptr[j]:G.indptr[j + 1]]]
+            used = set(used[used >= 0].tolist())
+            c = 0
+            while c in used:
+                c += 1
+            colours[j] = c
+        return colours
+
+    def tangent(self, x: np.ndarray, S: sp.csr_matrix, colours: np.ndarray, h: float) -> sp.csc_matrix:
+        """(n_free, n_free) d f_int / dx on the free dofs at x by central differences, one pair of force calls per
+        colour; column j takes the rows of its pattern column from its colour's difference."""
+        Sc = S.tocsc()
+        data = np.empty(Sc.nnz)
+        xr = x.ravel()
+        for c in range(colours.max() + 1):
+            cols = np.flatnonzero(colours == c)
+            xp, xm = xr.copy(), xr.copy()
+            xp[self.free[cols]] += h
+            xm[self.free[cols]] -= h
+            df = (self.f_int(xp.reshape(-1, 3)).ravel() - self.f_int(xm.reshape(-1, 3)).ravel())[self.free] / (2 * h)
+            for j in cols:
+                a, b = Sc.indptr[j], Sc.indptr[j + 1]
+                data[a:b] = df[Sc.indices[a:b]]
+        return sp.csc_matrix((data, Sc.indices.copy(), Sc.indptr.copy()), shape=Sc.shape)
+
+    def dense_tangent(self, x: np.ndarray, h: float) -> np.ndarray:
+        """(n_free, n_free) the same derivative, one column at a time (reference for ``tangent``)."""
+        xr = x.ravel()
+        K = np.empty((len(self.free), len(self.free)))
+        for j, d in enumerate(self.free):
+            xp, xm = xr.copy(), xr.copy()
+            xp[d] += h
+            xm[d] -= h
+            K[:, j] = (self.f_int(xp.reshape(-1, 3)).ravel() - self.f_int(xm.reshape(-1, 3)).ravel())[self.free] / (
+                2 * h)
+        return K
+
+
+def solve(problem, first: float = 0.1, min_increment: float = 1e-4, max_iterations: int = 12, rtol: float = 1e-8,
+          h: float | None = None, x0: np.ndarray | None = None, verbose: bool = False) -> StaticResult:
+    """Static equilibrium of ``problem`` (a compiled ``Problem``) under its loads at the end of its last step.
+
+    Newton on the free dofs per load increment; converged when the largest correction is below rtol times the
+    largest displacement (at least rtol times the model's size) and the residual's norm below 1e-4 of the load's (its round-off floor is ~1e-6 on the strips).
+    h [mm] is the difference step (default 1e-7 of the model's size).
+    """
+    t0 = time.perf_counter()
+    sp_ = StaticProblem(problem)
+    X = sp_.X
+    size = float(np.ptp(X, axis=0).max())
+    h = 1e-7 * size if h is None else h
+    S = sp_.dof_pattern(sp_.pattern())
+    colours = StaticProblem.colour(S)
+    fe = sp_.f_ext.ravel()[sp_.free]
+    load_norm = max(np.linalg.norm(fe), 1e-300)
+    x = X.copy() if x0 is None else x0.copy()
+    x.ravel()[sp_.held] = sp_.x_held
+    lam, dlam = 0.0, first
+    increments = iterations = 0
+    history = []
+    while lam < 1.0 and dlam >= min_increment:
+        target = min(1.0, lam + dlam)
+        xt, ok, its = x.copy(), False, 0
+        for its in range(1, max_iterations + 1):
+            f = sp_.f_int(xt)
+            r = f.ravel()[sp_.free] - target * fe
+            if not np.all(np.isfinite(r)) or sp_.inverted():
+                break
+            K = sp_.tangent(xt, S, colours, h)
+            try:
+                du = spl.spsolve(K, -r)
+            except RuntimeError:
+                break
+            if not np.all(np.isfinite(du)):
+                break
+            # damped Newton: backtracking (Armijo) on the potential Pi = stored - lambda f_ext . u, whose gradient is
+            # r. The fibres' tension/compression kink at zero strain makes the tangent of a straight strip far from
+            # the state it leads to, and plain Newton cycles there. Near convergence Pi's round-off hides the
+            # decrease, so a step that lowers |r| is accepted as well.
+            pi0, slope, rn0 = sp_.potential(xt, target), float(r @ du), np.linalg.norm(r)
+            if not slope < 0.0:  # not a descent direction: steepest descent, scaled to Newton's length
+                du = -r * (np.linalg.norm(du) / rn0)
+                slope = float(r @ du)
+            step = 1.0
+            for _ in range(12):
+                trial = xt.copy()
+                trial.ravel()[sp_.free] += step * du
+                pit = sp_.potential(trial, target)
+                if np.isfinite(pit) and not sp_.inverted():
+                    rt = np.linalg.norm(sp_.f_int(trial).ravel()[sp_.free] - target * fe)
+                    if pit <= pi0 + 1e-4 * step * slope or rt < rn0:
+                        break
+                step *= 0.5
+            xt = trial
+            du = step * du
+            if verbose:
+                print(f"  lambda {target:.4g} it {its} |r| {rn0:.3e} step {step:g} |du| {np.abs(du).max():.3e}")
+            scale = max(np.abs(xt - X).max(), size * 1e-6)
+            if np.abs(du).max() < rtol * scale:
+                rn = sp_.f_int(xt).ravel()[sp_.free] - target * fe
+                ok = bool(np.linalg.norm(rn) < 1e-4 * target * load_norm) and not sp_.inverted()
+                break
+        iterations += its
+        if ok:
+            x, lam = xt, target
+            increments += 1
+            history.append((lam, its))
+            dlam = min(dlam * (2.0 if its <= 4 else 1.0), 0.5)
+        else:
+            dlam *= 0.5
+    return StaticResult(x, lam >= 1.0, lam, increments, iterations, sp_.calls, int(colours.max() + 1),
+                        time.perf_counter() - t0, history)
