@@ -20,13 +20,13 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 DECKS = ROOT / "decks" / "forming"
-MODELS = ("sm", "ts")
+MODELS = ("sm", "ts")   # sm runs in the default tier (25 CPU-s), ts in the nightly one (47 CPU-s)
 
 HALF = 0.115           # half thickness of the 0.23 mm blank [mm]
 C0 = 0.05              # clearance of the decks' exponential law [mm]
-TRAVEL = 10.0          # upper-tool travel of the COARSE decks [mm] (published 20: see the decks' header)
+TRAVEL = 20.0          # upper-tool travel of the coarse decks [mm] (the published 20)
 HEIGHT, CLEAR, LIFT = 20.5, 0.3, 20.55   # block height, tool clearance, upper-tool lift of the variant files [mm]
-Z_FLAT_END = -HEIGHT + CLEAR + LIFT - TRAVEL   # upper tool's outer flat at the end of the stroke: -9.65 mm
+Z_FLAT_END = -HEIGHT + CLEAR + LIFT - TRAVEL   # upper tool's outer flat at the end of the stroke: -19.65 mm
 
 
 def square_tube_profiles(s):
@@ -60,7 +60,7 @@ def taut_string(s, low, high):
     return r.x
 
 
-@pytest.fixture(scope="module", params=MODELS)
+@pytest.fixture(scope="module", params=["sm", pytest.param("ts", marks=pytest.mark.nightly)])
 def run(request, tmp_path_factory):
     """(history columns, final reference and current node positions, summary, exit code) of one coarse deck."""
     import meshio
@@ -114,27 +114,33 @@ def test_upper_force_zero_before_contact_and_pushing_after(run):
 
 def test_flange_under_the_upper_flat(run):
     """Requirement: at the end of the stroke the flange in the middle of the sides (reference x > 80 mm and
-    y < 40 mm, or the mirror: outside the block's foot and away from the corner wrinkles) lies under the upper
-    tool's outer flat (z = -9.65 mm): mid-surface between the flat minus the half thickness plus the clearance c0
-    (a node may enter the exponential law's clearance) and 0.5 mm lower (nothing pulls the pushed flange away from
-    the flat but its scaled inertia; 0.5 mm is twice the thickness)."""
+    y < 40 mm, or the mirror: outside the block's foot and away from the corner wrinkles) lies in the channel
+    between the upper tool's outer flat (z = -19.65 mm) and the lower tool's floor: its mid-surface between the
+    lower tool's surface plus the half thickness and the upper flat minus it (the generator's profiles), each
+    widened by the exponential law's clearance c0 (pressure starts there) and 0.01 mm of overclosure (the
+    stiffness cap of 10 MPa/mm takes 0.1 MPa for it, far above the grips' and the flange's loads)."""
     _, X, x, _, _ = run
     flange = ((X[:, 0] > 80.0) & (X[:, 1] < 40.0)) | ((X[:, 1] > 80.0) & (X[:, 0] < 40.0))
     z = x[flange, 2]
-    top = Z_FLAT_END - HALF + C0
-    assert z.max() <= top + 1e-9, (z.max(), top)
-    assert z.min() >= top - C0 - 0.5, (z.min(), top)
+    low, up = square_tube_profiles(np.array([40.0]))
+    assert abs(up[0] - (Z_FLAT_END - HALF)) < 1e-9
+    assert z.max() <= up[0] + C0 + 0.01, (z.max(), up[0])
+    assert z.min() >= low[0] - C0 - 0.01, (z.min(), low[0])
 
 
 def test_top_stays_on_the_block(run):
     """Requirement: the blank over the block top (reference x, y < 40 mm, inside the top-edge fillet that starts at
-    45 mm) neither enters the block (mid-surface above the block top plus the half thickness minus c0) nor lifts
-    off by more than 0.5 mm (the grips' tension holds it on the block; the upper tool's plateau is 10.9 mm above)."""
+    45 mm) stays in the gap between the block top and the upper tool's plateau, which ends 0.85 mm above it: the
+    mid-surface above the block top plus the half thickness, widened by the clearance c0 and 0.01 mm of overclosure
+    (0.1 MPa at the capped stiffness), and below the plateau's surface itself (the mid-surface crossing a tool's
+    surface would be a shell passing through it; the blank buckled over the top is squeezed in the 0.85 mm gap at
+    the end of the stroke, so its upper face may overclose the plateau by more than c0)."""
     _, X, x, _, _ = run
     top = (X[:, 0] < 40.0) & (X[:, 1] < 40.0)
     z = x[top, 2]
-    assert z.min() >= HALF - C0 - 1e-9, z.min()
-    assert z.max() <= HALF + 0.5, z.max()
+    low, up = square_tube_profiles(np.array([-30.0]))
+    assert z.min() >= low[0] - C0 - 0.01, (z.min(), low[0])
+    assert z.max() < up[0] + HALF, (z.max(), up[0] + HALF)
 
 
 def test_warp_line_keeps_its_length_and_draws_in(run):
