@@ -17,8 +17,8 @@ from fdeck.registry import MaterialKind, register_material
 
 @njit
 def point(F, frame, params, state, P):
-    """First Piola-Kirchhoff stress into P (3, 3); returns (psi [MPa], m1, m2, m3) with m_i the P-wave modulus
-    bound [MPa] along each frame direction (isotropic: three equal values).
+    """First Piola-Kirchhoff stress into P (3, 3); returns (psi [MPa], m1, m2, m3) with m_i the modulus
+    bound [MPa] along each frame direction that sets the element step (isotropic: three equal values).
 
     P = mu F + (lam ln J - mu) F^-T, with F^-T = cof(F) / J built in place in P (no allocation per point).
     """
@@ -51,8 +51,9 @@ def point(F, frame, params, state, P):
             P[i, j] = mu * F[i, j] + c * P[i, j]
     psi = 0.5 * mu * (i1 - 3.0) - mu * logJ + 0.5 * lam * logJ * logJ
     # Reference acoustic tensor of A = dP/dF = mu I + (mu - lam ln J) F^-T(x)F^-1 + lam F^-T x F^-T is bounded by
-    # mu + (|mu - lam ln J| + lam) / sigma_min(F)^2; exact (lam + 2 mu) at rest.
-    m = mu + (abs(mu - lam * logJ) + lam) * sym_bound6(b00, b11, b22, b01, b12, b02)
+    # mu + (|mu - lam ln J| + lam) / sigma_min(F)^2; exact (lam + 2 mu) at rest. Plus 2 lam / sigma_min^2, the
+    # Poisson coupling of a lumped-mass hexahedron's dilatation mode (see fdeck.physics.materials.elastic): 3 K at rest.
+    m = mu + (abs(mu - lam * logJ) + 3.0 * lam) * sym_bound6(b00, b11, b22, b01, b12, b02)
     return psi, m, m, m
 
 
