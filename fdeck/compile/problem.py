@@ -32,6 +32,12 @@ class StepPlan:
     max_cycles: int | None
     added_mass: float  # fraction of the physical mass added by mass scaling
     start: float = 0.0  # nominal start time of the step [s] (the sum of the earlier steps' durations)
+    # selective mass scaling (``engine.selective_mass``): per group (n_el,) factors beta_e of the added mass
+    # beta_e (m_e / n)(I - P_e) (P_e: the element's rigid modes), None for a step without; ``rho`` then holds
+    # rho (1 + beta) (the density the element steps see: every deformation mode of the element carries 1 + beta
+    # times its mass) while ``mass`` stays the physical lumped mass; ``added_mass`` is tr(dM) / tr(M)
+    selective: list[np.ndarray] | None = None
+    cg: tuple[float, int] = (1e-6, 200)  # (relative tolerance, iteration cap) of the per-cycle solve
 
 
 @dataclass
@@ -276,12 +282,24 @@ def plan_steps(deck: Deck, groups: list, physical_mass: np.ndarray, effects=()) 
             for i, g in enumerate(groups):
                 dt0 = rest_dt(g, g.rho, effects)  # rest stable step per element
                 rho[i] = g.rho * np.maximum(1.0, (ms.target_dt / (s.dt_safety * dt0)) ** 2)
-        mass = nodal_mass(groups, n_node, rho)
-        inertia = nodal_inertia(groups, n_node, rho) if rotational else None
-        added = (mass.sum() - total) / total
+        selective = None
+        if ms is not None and ms.selective:
+            # the same element steps as above, reached by mass on the deformation modes only (closed form: the
+            # element's deformation eigenvalues divide by 1 + beta, see engine.selective_mass)
+            selective = [r / g.rho - 1.0 for r, g in zip(rho, groups)]
+            physical = [g.rho for g in groups]
+            mass = nodal_mass(groups, n_node, physical)
+            inertia = nodal_inertia(groups, n_node, physical) if rotational else None
+            added = sum(float((b * g.mass(g.rho).sum(axis=1)).sum()) * (1.0 - 2.0 / g.conn.shape[1])
+                        for b, g in zip(selective, groups)) / total
+        else:
+            mass = nodal_mass(groups, n_node, rho)
+            inertia = nodal_inertia(groups, n_node, rho) if rotational else None
+            added = (mass.sum() - total) / total
         start = sum(p.duration for p in plans)
+        cg = (ms.cg_tolerance, ms.cg_max_iterations) if ms is not None else (1e-6, 200)
         plans.append(StepPlan(s.name, s.duration, s.dt_safety, rho, mass, inertia, s.max_cycles, float(added),
-                              start))
+                              start, selective, cg))
     return plans
 
 

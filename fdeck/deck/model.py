@@ -19,6 +19,7 @@ from fdeck.deck.errors import unknown_name
 from fdeck.cards.contact import Contact, Tool
 from fdeck.cards.checkpoint import Checkpoint
 from fdeck.cards.steps import BulkViscosity, Damping
+from fdeck.cards.mass_scaling import MassScaling
 from fdeck.deck.section import SectionBase
 
 Vector = tuple[float, float, float]
@@ -200,20 +201,6 @@ BUILTIN_AMPLITUDES = ("constant", "ramp", "smooth")
 
 
 # -- steps, output, checks ----------------------------------------------------------------------------------
-class MassScaling(Card):
-    """Mass scaling: a fixed density factor, or per-element added mass to reach a target time step."""
-
-    factor: float | None = Field(None, ge=1.0, description="Density multiplier (dt grows by sqrt(factor)).")
-    target_dt: float | None = Field(None, gt=0, description="Target stable time step [s]; mass is added to "
-                                    "elements whose rest stable step is smaller, and the added mass is reported.")
-
-    @model_validator(mode="after")
-    def _one_of(self):
-        if (self.factor is None) == (self.target_dt is None):
-            raise ValueError("give exactly one of `factor` or `target_dt`")
-        return self
-
-
 class Step(Card):
     name: str = "step"
     duration: float = Field(gt=0, description="Step duration [s].")

@@ -170,6 +170,7 @@ def _run(problem, sink: Sink, should_stop, resume) -> Result:
     forcing = [e for e in effects if e.forces is not None]
     constraints = [e for e in effects if e.constrains]
     movers = [e for e in effects if e.moves]
+    sms = next((e for e in effects if getattr(e, "solves_mass", False)), None)  # selective mass scaling
     X = problem.X
     n = len(X)
     x, v = X.copy(), np.zeros((n, 3))
@@ -257,6 +258,8 @@ def _run(problem, sink: Sink, should_stop, resume) -> Result:
                 rot.set_inertia(plan.inertia)
             for e in effects:
                 e.begin_step(k, plan)
+            if sms is not None:
+                sms.prepare(constraints, x)
             collapse = getattr(problem.deck.steps[k], "min_dt_ratio", 0.0)
             if resume is not None and k == k0:
                 # the step's set-up above, then the saved state over it (history variables, loop counters)
@@ -309,11 +312,19 @@ def _run(problem, sink: Sink, should_stop, resume) -> Result:
                     kick_rot(rot.w, rot.w_old, rot.inv_I, rot.m_ext, rot.m_int, rot.m_damp, dt_avg)
                 for c in constraints:
                     c.constrain(t + dt, dt, x, v)
+                if sms is not None and sms.active:  # non-diagonal mass: the free dofs' accelerations are solved
+                    t0 = timer.add("integrator", t0)
+                    sms.solver.accelerate(v, v_old, f_ext, f_int, f_damp, dt_avg)
+                    w_ext += sms.solver.work(dx)
+                    t0 = timer.add(sms.name, t0)
                 # ledger at t_n (kinetic energy needs v(n+1/2)), then positions move to t_(n+1)
                 w, dd, ke = drift(x, v, v_old, m, f_ext, f_int, f_damp, fe_prev, fd_prev, dx, reaction, dt, dt_avg,
                                   res.cycles == 0)
                 w_ext += w
                 d_damp += dd
+                if sms is not None and sms.active:  # reactions and kinetic energy of the added mass
+                    sms.ke = sms.solver.book(v, v_old, reaction, fe_prev, res.cycles == 0)
+                    ke += sms.ke
                 if rot is not None:
                     w, dd, ke_rot = drift_rot(rot.d, rot.w, rot.w_old, rot.I, rot.m_ext, rot.m_int, rot.m_damp,
                                               rot.me_prev, rot.md_prev, rot.dtheta, rot.reaction, dt, dt_avg,

@@ -8,3 +8,4 @@ from fdeck.physics.measures import element_average, node_displacement, pin_joint
 from fdeck.physics.effects import grip, symmetry  # noqa: F401
 from fdeck.physics.measures import draw_in, wrinkles  # noqa: F401
 from fdeck.physics.elements import hex8_ans  # noqa: F401
+from fdeck.physics.effects import selective_mass  # noqa: F401
