@@ -255,3 +255,15 @@ def test_selective_on_shells_is_a_located_error():
         compile_deck(Deck.model_validate(data), base=deck_data.__globals__["DECKS"] / "coupons")
     paths = [p for p, _ in exc.value.problems]
     assert ("steps", 0, "mass_scaling", "selective") in paths
+
+
+def test_selective_with_fibre_bending_is_a_located_error():
+    """Requirement: selective mass scaling with a section effect that has a stiffness of its own (fibre bending,
+    whose hinges turn whole elements: modes the added mass leaves unscaled, so its step would not grow) is refused
+    before the run, located at steps[0].mass_scaling.selective."""
+    data = deck_data("three_point_bending/fbar_bending_3mm.yaml")
+    data["steps"][0]["mass_scaling"] = {"factor": 4.0, "selective": True}
+    with pytest.raises(CompileError) as exc:
+        compile_deck(Deck.model_validate(data), base=deck_data.__globals__["DECKS"] / "three_point_bending")
+    paths = [p for p, _ in exc.value.problems]
+    assert ("steps", 0, "mass_scaling", "selective") in paths

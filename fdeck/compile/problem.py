@@ -284,6 +284,12 @@ def plan_steps(deck: Deck, groups: list, physical_mass: np.ndarray, effects=()) 
                 rho[i] = g.rho * np.maximum(1.0, (ms.target_dt / (s.dt_safety * dt0)) ** 2)
         selective = None
         if ms is not None and ms.selective:
+            stiff = sorted({e.name for e in effects if e.group is not None and e.rest_dt(e.group.rho) is not None})
+            if stiff:  # their stiffness turns whole elements, which the added mass leaves as they are
+                raise CompileError([(("steps", len(plans), "mass_scaling", "selective"), "selective mass scaling "
+                                     "adds no mass to element rotations, which section effects with a stiffness "
+                                     f"of their own act on ({', '.join(stiff)}): their step would not grow; use "
+                                     "mass scaling without `selective`")])
             # the same element steps as above, reached by mass on the deformation modes only (closed form: the
             # element's deformation eigenvalues divide by 1 + beta, see engine.selective_mass)
             selective = [r / g.rho - 1.0 for r, g in zip(rho, groups)]
