@@ -93,20 +93,27 @@ def _progress_printer(total: float):
 
 
 def _claim_output(deck: Path, out: Path, overwrite: bool, keep: bool):
-    """Before a run: refuse (exit 2) a deck ``fdeck validate`` refuses (absurd figures included) and a result
-    folder owned by another deck (``fdeck.io.outdir``); -> the ``Claim`` on ``out``. ``keep``: a restart continues
-    the folder's run, so none of its files are stale."""
+    """Before a run: read and compile the deck, refusing (exit 2) what ``fdeck validate`` refuses (absurd figures
+    included), then claim the result folder unless another deck owns it (``fdeck.io.outdir``). -> (deck card,
+    locations, (problem, compile time [s]), ``Claim`` on ``out``); the problem goes to ``execute`` unrun.
+    ``keep``: a restart continues the folder's run, so none of its files are stale."""
+    import time
+
     from fdeck.compile.check import check_deck
     from fdeck.deck.errors import DeckError, format_problems
     from fdeck.io.outdir import OutdirError, claim
 
+    t0 = time.perf_counter()
     try:
-        check_deck(deck)  # compiles once more than execute does: the price of refusing before any file is touched
+        d, locs, problem, warnings = check_deck(deck)
     except DeckError as exc:
         _err(format_problems(exc.problems))
         raise typer.Exit(2)
+    t_compile = time.perf_counter() - t0
+    if warnings:
+        _err(format_problems(warnings))
     try:
-        return claim(out, deck, overwrite, restart=keep)
+        return d, locs, (problem, t_compile), claim(out, deck, overwrite, restart=keep)
     except OutdirError as exc:
         _err(f"{deck}: {exc}")
         raise typer.Exit(2)
@@ -149,16 +156,15 @@ def run(deck: Path = typer.Argument(..., help="Deck file."),
     if checkpoint is not None and not restart:
         _err(f"{checkpoint}: a checkpoint file is only read with --restart")
         raise typer.Exit(2)
-    d, locs = _read(deck)
     out = out or Path("results") / deck.stem
-    claim = _claim_output(deck, out, overwrite, keep=restart)
+    d, locs, compiled, claim = _claim_output(deck, out, overwrite, keep=restart)
     if restart:
         restart = str(checkpoint) if checkpoint is not None else True
     progress, stop = _progress_printer(d.duration)
     progress = _after_first_frame(progress, claim.first_frame)
     try:
         code, summary = execute(d, deck.parent, out, deck.stem, str(deck), progress, echo=_err,
-                                restart=restart or None, max_wall=max_wall)
+                                restart=restart or None, max_wall=max_wall, compiled=compiled)
     except CompileError as exc:
         stop()
         _err(format_problems(_compile_problems(exc, deck, locs)))

@@ -289,16 +289,22 @@ def find_restart(out_dir: Path, restart: str | bool, digests: dict, echo=print) 
 
 
 def execute(deck, base: Path, out_dir: Path, name: str, deck_path: str, progress=lambda *a: None,
-            echo=print, restart: str | bool | None = None, max_wall: float | None = None) -> tuple[int, dict]:
+            echo=print, restart: str | bool | None = None, max_wall: float | None = None,
+            compiled: tuple | None = None) -> tuple[int, dict]:
     """Compile and run a validated deck; returns (exit code, summary dict). Raises CompileError on bad geometry,
     RestartError when ``restart`` (a checkpoint file, or True/"" for the newest valid one in ``out_dir``) cannot be
-    used. ``max_wall`` [s]: stop with a checkpoint (exit 124) once the run has taken that long."""
+    used. ``max_wall`` [s]: stop with a checkpoint (exit 124) once the run has taken that long. ``compiled``:
+    (problem, compile time [s]) of this deck compiled by the caller and not yet run (``fdeck run`` compiles before it
+    touches the result folder, to refuse absurd decks), so it is not compiled twice."""
     from fdeck.compile.problem import compile_deck
     from fdeck.io.summary import write_json_atomic
 
-    t_compile = time.perf_counter()
-    problem = compile_deck(deck, base)
-    t_compile = time.perf_counter() - t_compile
+    if compiled is not None:
+        problem, t_compile = compiled
+    else:
+        t_compile = time.perf_counter()
+        problem = compile_deck(deck, base)
+        t_compile = time.perf_counter() - t_compile
     digests = deck_digests(deck, problem)
     resume = None if restart is None or restart is False else find_restart(out_dir, restart, digests, echo)
     out = Outputs(problem, out_dir, name, progress, digests, resume)

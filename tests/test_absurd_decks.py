@@ -2,8 +2,9 @@
 that makes them absurd (``fdeck.compile.sanity``).
 
 Reference deck: a 10 x 1 x 1 mm steel bar of 1 mm cubes. Its stable step is checked against the closed form of the
-dilatational wave crossing one element, dt = h / c with c = sqrt(E (1 - nu) / ((1 + nu)(1 - 2 nu) rho)), times
-dt_safety 0.9; every figure below is then derived from that closed form, not read from a run.
+lumped cube's dilatation mode, dt = h / c with c = sqrt((3 lam + 2 mu) / rho) = sqrt(E / ((1 - 2 nu) rho)) (the
+exact critical step of a free 1 mm cube, tests/test_stable_step.py), times dt_safety 0.9; every figure below is then
+derived from that closed form, not read from a run.
 """
 
 from __future__ import annotations
@@ -21,9 +22,9 @@ from fdeck.compile.sanity import BYTES_PER_ELEMENT
 pytestmark = pytest.mark.unit
 
 E, NU, RHO, H = 2.0e5, 0.3, 7.85e-9, 1.0
-C = math.sqrt(E * (1 - NU) / ((1 + NU) * (1 - 2 * NU) * RHO))  # mm/s
-DT = 0.9 * H / C  # s, 1.54e-7
-# The element's own step uses its characteristic length (h for a cube) and the rest P-wave modulus, so on this
+C = math.sqrt(E / ((1 - 2 * NU) * RHO))  # mm/s: 3 lam + 2 mu = 3 K = E / (1 - 2 nu)
+DT = 0.9 * H / C  # s, 1.13e-7
+# The element's own step uses its characteristic length (h for a cube) and the rest modulus 3 lam + 2 mu, so on this
 # mesh it equals the closed form to rounding (measured 1 - 7e-16); the figures are printed to 3 significant
 # digits, so each is compared to its reference within half a unit of the third digit: a relative 5e-3.
 REL = 5e-3
@@ -57,7 +58,7 @@ def figure(text: str, pattern: str) -> float:
 
 def test_duration_of_1e9_s_refused_with_expected_cycles(tmp_path):
     """Requirement: a duration of 1e9 s is refused by validate and info (exit 2) with the expected cycles,
-    duration / dt = 1e9 / 1.54e-7 = 6.5e15 within REL (closed-form step, see module docstring)."""
+    duration / dt = 1e9 / 1.13e-7 = 8.9e15 within REL (closed-form step, see module docstring)."""
     data = bar(duration=1e9)
     for command in ("validate", "info"):
         r, path = cli(tmp_path, data, command)
@@ -101,7 +102,7 @@ def test_mesh_of_1e11_elements_refused_before_compiling(tmp_path):
 
 def test_velocity_of_1e12_mm_s_refused_with_travel_per_cycle(tmp_path):
     """Requirement: a boundary velocity of 1e12 mm/s is refused with the travel in one stable step in element edges,
-    v dt / h = 1e12 x 1.54e-7 / 1 = 1.5e5 within REL."""
+    v dt / h = 1e12 x 1.13e-7 / 1 = 1.1e5 within REL."""
     data = bar()
     data["boundary"].append({"type": "velocity", "nodes": "xmax", "dofs": ["x"], "value": 1e12})
     r, _ = cli(tmp_path, data, "validate")
@@ -112,7 +113,7 @@ def test_velocity_of_1e12_mm_s_refused_with_travel_per_cycle(tmp_path):
 
 
 def test_fast_tool_refused_with_travel_per_cycle(tmp_path):
-    """Requirement: a rigid plane tool driven at 1e10 mm/s toward the bar crosses 1e10 x 1.54e-7 = 1.5e3 element
+    """Requirement: a rigid plane tool driven at 1e10 mm/s toward the bar crosses 1e10 x 1.13e-7 = 1.1e3 element
     edges in one rest stable step (within REL): refused."""
     data = bar()
     data["tools"] = {"punch": {"surface": {"shape": "plane", "point": [0, 0, 1.5], "normal": [0, 0, -1]},
@@ -126,7 +127,7 @@ def test_fast_tool_refused_with_travel_per_cycle(tmp_path):
 
 
 def test_density_of_1e_300_refused_below_the_step_floor(tmp_path):
-    """Requirement: a density of 1e-300 gives a rest step of dt sqrt(1e-300 / 7.85e-9) = 1.7e-153 s, below the
+    """Requirement: a density of 1e-300 gives a rest step of dt sqrt(1e-300 / 7.85e-9) = 1.3e-153 s, below the
     1e-12 s floor: refused with that step (within REL)."""
     data = bar()
     data["materials"]["steel"]["density"] = 1e-300
