@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from fdeck.compile.problem import compile_deck
 from fdeck.deck.model import Deck
@@ -79,3 +80,43 @@ def test_elastic_cantilever_against_timoshenko():
     w = -(res.x[tip, 2] - problem.X[tip, 2]).mean()
     w_ref = P * L ** 3 / (3 * EI) + P * L / (5.0 / 6.0 * G * h * h)
     assert abs(w / w_ref - 1.0) < 0.03, (w, w_ref)
+
+
+@pytest.mark.nightly
+@pytest.mark.xfail(strict=True, reason="the damped dynamic run has not settled: its tip creeps at ~1 mm/s (drift "
+                   "0.106 over the last 10 %), as if mass-proportional damping were ~24x the deck's alpha; the "
+                   "undamped run oscillates with the expected 0.020 s period between 0 and 2x the static answer")
+def test_static_equals_settled_dynamic_run():
+    """Requirement: the static equilibrium of a deck equals where the explicit dynamic run of the same deck settles:
+    a short elastic strip (L = 10 mm, h = 1 mm, E/G = 2, ans, 5 x 1 x 2) under gravity ramped in 0.01 s, mass-
+    proportional damping 2 omega_1 (critical for the first mode, omega_1 = 3.516 sqrt(EI / (rho A L^4)) = 321 rad/s,
+    the undamped run's period 0.020 s agrees), 0.15 s. Tolerance 0.5 % of the tip deflection: the residual motion
+    after 0.14 s of critically damped settling is ~ omega_1 t exp(-omega_1 t) ~ 1e-18 of the first mode's, so the
+    dynamic run's own drift (asserted below 0.1 %, over its last 10 %) and the explicit scheme's O(dt^2) error bound
+    it; the static solve converges to 1e-8."""
+    from helpers import run_data
+
+    L, h, E, G, rho = 10.0, 1.0, 1000.0, 500.0, 1e-6
+    q = lambda K: {"form": "quadratic", "K": K}  # noqa: E731
+    data = {"title": "settling strip", "mesh": {"block": {"size": [L, h, h], "divisions": [5, 1, 2]},
+                                                 "node_sets": {"tip": {"box": [[L, 0, 0], [L, h, h]]}}},
+            "materials": {"m": {"type": "fabric_hyper", "density": rho, "compression_ratio": 1.0,
+                                "warp": q(E / 2), "weft": q(E / 2), "compaction": q(E / 2),
+                                "in_plane_shear": q(G / 2), "transverse_shear_warp": q(G / 2),
+                                "transverse_shear_weft": q(G / 2)}},
+            "sections": [{"elements": "all", "material": "m", "formulation": "ans"}],
+            "boundary": [{"type": "fixed", "nodes": "xmin"}, {"type": "fixed", "nodes": "all", "dofs": ["y"]}],
+            "loads": [{"type": "gravity", "acceleration": [0, 0, -9810], "amplitude": "ramp"}],
+            "amplitudes": {"ramp": {"type": "smooth_step", "t1": 0.01}},
+            "steps": [{"name": "settle", "duration": 0.15, "damping": {"mass_proportional": 642.0}}],
+            "output": {"history_points": 81, "measures": [{"type": "node_displacement", "name": "tip",
+                                                            "nodes": "tip", "component": "z", "reduce": "mean"}]}}
+    problem, result, hist = run_data(data)
+    w_dyn = -hist["tip"][-1]
+    drift = abs(hist["tip"][-1] - hist["tip"][-9]) / w_dyn
+    assert drift < 1e-3, (drift, hist["tip"][::10].round(4).tolist())
+    res = static.solve(problem)
+    assert res.converged
+    tip = problem.node_sets["tip"]
+    w_static = -(res.x[tip, 2] - problem.X[tip, 2]).mean()
+    assert abs(w_static / w_dyn - 1.0) < 5e-3, (w_static, w_dyn, drift)

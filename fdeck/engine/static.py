@@ -229,41 +229,50 @@ def solve(problem, first: float = 0.1, min_increment: float = 1e-4, max_iteratio
     history = []
     while lam < 1.0 and dlam >= min_increment:
         target = min(1.0, lam + dlam)
-        xt, ok, its = x.copy(), False, 0
+        xt, ok, its, mu = x.copy(), False, 0, 0.0
         for its in range(1, max_iterations + 1):
             f = sp_.f_int(xt)
             r = f.ravel()[sp_.free] - target * fe
             if not np.all(np.isfinite(r)) or sp_.inverted():
                 break
             K = sp_.tangent(xt, S, colours, h)
+            # damped, shifted Newton on the potential Pi = stored - lambda f_ext . u (gradient r): solve
+            # (K + mu D) du = -r, D = diag |K|, with mu raised when the step has to be cut back and lowered when the
+            # full step passes Armijo's test (a Levenberg-Marquardt shift: the fibres' tension/compression kink and
+            # the soft compaction make the tangent of a nearly straight strip a poor model of the state it leads
+            # to, and plain Newton cycles there). Near convergence Pi's round-off hides the decrease, so there a
+            # step that lowers |r| is accepted as well.
+            D = sp.diags(np.abs(K.diagonal()) + 1e-300)
             try:
-                du = spl.spsolve(K, -r)
+                du = spl.spsolve((K + mu * D).tocsc(), -r) if mu > 0 else spl.spsolve(K, -r)
             except RuntimeError:
                 break
             if not np.all(np.isfinite(du)):
                 break
-            # damped Newton: backtracking (Armijo) on the potential Pi = stored - lambda f_ext . u, whose gradient is
-            # r. The fibres' tension/compression kink at zero strain makes the tangent of a straight strip far from
-            # the state it leads to, and plain Newton cycles there. Near convergence Pi's round-off hides the
-            # decrease, so a step that lowers |r| is accepted as well.
             pi0, slope, rn0 = sp_.potential(xt, target), float(r @ du), np.linalg.norm(r)
             if not slope < 0.0:  # not a descent direction: steepest descent, scaled to Newton's length
                 du = -r * (np.linalg.norm(du) / rn0)
                 slope = float(r @ du)
+                mu = max(10.0 * mu, 1e-3)
             step = 1.0
             for _ in range(12):
                 trial = xt.copy()
                 trial.ravel()[sp_.free] += step * du
                 pit = sp_.potential(trial, target)
                 if np.isfinite(pit) and not sp_.inverted():
-                    rt = np.linalg.norm(sp_.f_int(trial).ravel()[sp_.free] - target * fe)
-                    if pit <= pi0 + 1e-4 * step * slope or rt < rn0:
+                    if pit <= pi0 + 1e-4 * step * slope:
+                        break
+                    if abs(slope) < 1e-10 * abs(pi0) and np.linalg.norm(
+                            sp_.f_int(trial).ravel()[sp_.free] - target * fe) < rn0:
                         break
                 step *= 0.5
+            mu = mu * 0.25 if step == 1.0 else max(10.0 * mu, 1e-3)
+            if mu < 1e-8:
+                mu = 0.0
             xt = trial
             du = step * du
             if verbose:
-                print(f"  lambda {target:.4g} it {its} |r| {rn0:.3e} step {step:g} |du| {np.abs(du).max():.3e}")
+                print(f"  lambda {target:.4g} it {its} |r| {rn0:.3e} step {step:g} mu {mu:.1e} |du| {np.abs(du).max():.3e}")
             scale = max(np.abs(xt - X).max(), size * 1e-6)
             if np.abs(du).max() < rtol * scale:
                 rn = sp_.f_int(xt).ravel()[sp_.free] - target * fe
