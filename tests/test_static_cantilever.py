@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
 from fdeck.compile.problem import compile_deck
 from fdeck.deck.model import Deck
@@ -82,10 +81,6 @@ def test_elastic_cantilever_against_timoshenko():
     assert abs(w / w_ref - 1.0) < 0.03, (w, w_ref)
 
 
-@pytest.mark.nightly
-@pytest.mark.xfail(strict=True, reason="the damped dynamic run has not settled: its tip creeps at ~1 mm/s (drift "
-                   "0.106 over the last 10 %), as if mass-proportional damping were ~24x the deck's alpha; the "
-                   "undamped run oscillates with the expected 0.020 s period between 0 and 2x the static answer")
 def test_static_equals_settled_dynamic_run():
     """Requirement: the static equilibrium of a deck equals where the explicit dynamic run of the same deck settles:
     a short elastic strip (L = 10 mm, h = 1 mm, E/G = 2, ans, 5 x 1 x 2) under gravity ramped in 0.01 s, mass-
@@ -106,17 +101,18 @@ def test_static_equals_settled_dynamic_run():
                                 "transverse_shear_weft": q(G / 2)}},
             "sections": [{"elements": "all", "material": "m", "formulation": "ans"}],
             "boundary": [{"type": "fixed", "nodes": "xmin"}, {"type": "fixed", "nodes": "all", "dofs": ["y"]}],
-            "loads": [{"type": "gravity", "acceleration": [0, 0, -9810], "amplitude": "ramp"}],
-            "amplitudes": {"ramp": {"type": "smooth_step", "t1": 0.01}},
+            "loads": [{"type": "gravity", "acceleration": [0, 0, -9810], "amplitude": "settle"}],
+            "amplitudes": {"settle": {"type": "smooth_step", "t1": 0.01}},
             "steps": [{"name": "settle", "duration": 0.15, "damping": {"mass_proportional": 642.0}}],
             "output": {"history_points": 81, "measures": [{"type": "node_displacement", "name": "tip",
                                                             "nodes": "tip", "component": "z", "reduce": "mean"}]}}
     problem, result, hist = run_data(data)
     w_dyn = -hist["tip"][-1]
     drift = abs(hist["tip"][-1] - hist["tip"][-9]) / w_dyn
-    assert drift < 1e-3, (drift, hist["tip"][::10].round(4).tolist())
+    assert drift < 1e-3, drift
     res = static.solve(problem)
     assert res.converged
     tip = problem.node_sets["tip"]
     w_static = -(res.x[tip, 2] - problem.X[tip, 2]).mean()
     assert abs(w_static / w_dyn - 1.0) < 5e-3, (w_static, w_dyn, drift)
+    print(f"static {w_static:.6g} dynamic {w_dyn:.6g} drift {drift:.2e}")
