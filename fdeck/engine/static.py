@@ -210,7 +210,12 @@ def solve(problem, first: float = 0.1, min_increment: float = 1e-4, max_iteratio
     """Static equilibrium of ``problem`` (a compiled ``Problem``) under its loads at the end of its last step.
 
     Newton on the free dofs per load increment; converged when the largest correction is below rtol times the
-    largest displacement (at least rtol times the model's size) and the residual's norm below 1e-4 of the load's (its round-off floor is ~1e-6 on the strips).
+    largest displacement (at least rtol times the model's size) and the residual's norm below 1e-4 of the load's
+    (its round-off floor is ~1e-6 of it on the 3WEAVE strips).
+
+    Known limit: with bimodular fibres (compression_ratio < 1, the kink of the fibre energy at zero strain) and large
+    rotations, as in the 3WEAVE strips at 1 % compression, the iterates lower the potential but do not converge in
+    the iteration budget (the result says so: converged False, load_factor reached).
     h [mm] is the difference step (default 1e-7 of the model's size).
     """
     t0 = time.perf_counter()
@@ -272,7 +277,8 @@ def solve(problem, first: float = 0.1, min_increment: float = 1e-4, max_iteratio
             xt = trial
             du = step * du
             if verbose:
-                print(f"  lambda {target:.4g} it {its} |r| {rn0:.3e} step {step:g} mu {mu:.1e} |du| {np.abs(du).max():.3e}")
+                print(f"  lambda {target:.4g} it {its} |r| {rn0:.3e} step {step:g} mu {mu:.1e} "
+                      f"|du| {np.abs(du).max():.3e}")
             scale = max(np.abs(xt - X).max(), size * 1e-6)
             if np.abs(du).max() < rtol * scale:
                 rn = sp_.f_int(xt).ravel()[sp_.free] - target * fe
