@@ -19,7 +19,7 @@ class MassScaling(Card):
                             "modes that deform an element, not to its translation (Olovsson, Simonsson & Unosson "
                             "2005), so total mass, momentum and the slow bending modes stay as they are; the "
                             "non-diagonal mass is solved each cycle by conjugate gradients.")
-    cg_tolerance: float = Field(1e-6, gt=0, lt=1, description="Selective scaling: the conjugate-gradient solve "
+    cg_tolerance: float = Field(1e-4, gt=0, lt=1, description="Selective scaling: the conjugate-gradient solve "
                                 "stops when the residual's norm (weighted by the inverse diagonal) falls below "
                                 "this fraction of the right-hand side's [-].")
     cg_max_iterations: int = Field(200, ge=1, description="Selective scaling: iteration cap of the solve per cycle; "

@@ -37,7 +37,7 @@ class StepPlan:
     # rho (1 + beta) (the density the element steps see: every deformation mode of the element carries 1 + beta
     # times its mass) while ``mass`` stays the physical lumped mass; ``added_mass`` is tr(dM) / tr(M)
     selective: list[np.ndarray] | None = None
-    cg: tuple[float, int] = (1e-6, 200)  # (relative tolerance, iteration cap) of the per-cycle solve
+    cg: tuple[float, int] = (1e-4, 200)  # (relative tolerance, iteration cap) of the per-cycle solve
 
 
 @dataclass
@@ -303,7 +303,7 @@ def plan_steps(deck: Deck, groups: list, physical_mass: np.ndarray, effects=()) 
             inertia = nodal_inertia(groups, n_node, rho) if rotational else None
             added = (mass.sum() - total) / total
         start = sum(p.duration for p in plans)
-        cg = (ms.cg_tolerance, ms.cg_max_iterations) if ms is not None else (1e-6, 200)
+        cg = (ms.cg_tolerance, ms.cg_max_iterations) if ms is not None else (1e-4, 200)
         plans.append(StepPlan(s.name, s.duration, s.dt_safety, rho, mass, inertia, s.max_cycles, float(added),
                               start, selective, cg))
     return plans

@@ -220,7 +220,7 @@ class SelectiveMass:
         self.free = np.ones((n_node, 3))
         self.dinv = np.ones((n_node, 3))
         self.m = np.ones(n_node)
-        self.tol, self.max_it = 1e-6, 200
+        self.tol, self.max_it = 1e-4, 200
         self.active = False
         self.a = np.zeros((n_node, 3))
         self.g = np.zeros((n_node, 3))
