@@ -146,6 +146,31 @@ output: {frames: 50, formats: [vtu, xdmf]}
         meshio.read(f)
 
 
+def test_deck_amplitude_named_like_a_builtin_is_a_located_error(tmp_path):
+    """Requirement: a deck amplitude named `ramp`, `smooth` or `constant` would be shadowed by the built-in of that
+    name wherever it is used (a user's 0.1 s smooth step silently became a ramp over the whole run): `fdeck
+    validate` refuses it at its own line, exit 2."""
+    deck = tmp_path / "shadow.yaml"
+    deck.write_text("""\
+mesh:
+  block: {size: [1, 1, 1], divisions: [1, 1, 1]}
+materials:
+  m: {type: linear_elastic, density: 1.0e-9, youngs_modulus: 1.0, poisson_ratio: 0.0}
+sections:
+  - {material: m, formulation: full}
+boundary:
+  - {type: fixed, nodes: zmin}
+  - {type: displacement, nodes: zmax, dofs: [z], value: -0.1, amplitude: ramp}
+amplitudes:
+  ramp: {type: smooth_step, t1: 0.1}
+steps:
+  - {duration: 1.0}
+""")
+    r = fdeck("validate", deck)
+    assert r.returncode == 2, r.stdout + r.stderr
+    assert f"{deck}:11:" in r.stderr and "built-in amplitude" in r.stderr, r.stderr  # the `ramp:` entry
+
+
 def _wait_for(path: Path, timeout=120.0):
     t0 = time.time()
     while not path.exists():

@@ -355,6 +355,10 @@ def cross_reference_problems(deck: Deck) -> list[tuple[tuple, str, str]]:
         if implied and s.formulation != implied:
             out.append((("sections", i, "formulation"), f"formulation '{s.formulation}' contradicts the material: "
                         f"materials.{s.material}.type '{kind}' implies formulation '{implied}'", "error"))
+    for name in deck.amplitudes:
+        if name in BUILTIN_AMPLITUDES:  # the built-in would win silently where the name is used
+            out.append((("amplitudes", name), f"'{name}' is a built-in amplitude ({', '.join(BUILTIN_AMPLITUDES)}); "
+                        "give this one another name", "error"))
     names = set(BUILTIN_AMPLITUDES) | set(deck.amplitudes)
     for group in ("boundary", "loads"):
         for i, c in enumerate(getattr(deck, group)):
