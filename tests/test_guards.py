@@ -71,3 +71,60 @@ def test_first_bad_node_is_named():
     x[4, 0] = np.inf
     assert first_bad_node(x, v) == 5
     assert "at node 5 (1-based" in str(RunStopped("non-finite energy", 1e-3, node=first_bad_node(x, v)))
+
+
+BAR = """title: bar pulled at one end
+mesh:
+  block: {size: [20, 2, 2], divisions: [10, 1, 1]}
+materials:
+  steel: {type: linear_elastic, density: 7.85e-9, youngs_modulus: 2.0e5, poisson_ratio: 0.0}
+sections:
+  - {material: steel, formulation: full}
+boundary:
+  - {type: fixed, nodes: xmin}
+  - {type: velocity, nodes: xmax, dofs: [x], value: 100.0, amplitude: smooth}
+steps:
+  - {duration: 2.0e-4}
+output: {frames: 4, history_points: 400}
+checks:
+  energy_balance: {max_error: 0.01, stop_above: 0.01}
+"""
+
+
+def _run_bar(tmp_path, step_factor: float, guard: bool = True):
+    """The bar run by the engine with every element step multiplied by ``step_factor`` (1.5: past the exact
+    critical step, central differences unstable) -> (result, history array, columns)."""
+    from fdeck.compile.problem import compile_deck
+    from fdeck.deck.read import read_deck
+    from fdeck.engine import solver
+
+    path = write_deck(tmp_path, BAR if guard else BAR.replace(", stop_above: 0.01", ""))
+    deck, _, _ = read_deck(path)
+    problem = compile_deck(deck, path.parent)
+    for g in problem.groups:
+        honest = g.stable_dt
+        g.stable_dt = lambda honest=honest: step_factor * honest()
+    res = solver.run(problem, solver.Sink())
+    return res, np.array(res.history), res.columns
+
+
+def test_created_energy_stops_the_run_before_it_blows_up(tmp_path):
+    """Requirement: with checks.energy_balance.stop_above, a run that creates energy stops (status failed, cause
+    'energy created') with finite state, long before it would blow up. The step is forced to 1.5x its estimate (past
+    the exact critical step, which is the estimate on this nu = 0 bar: tests/test_stable_step.py), so the highest
+    mode grows every cycle. References: (1) the same deck at the honest step completes with a balance error below
+    1e-6 of the largest energy (central differences conserve energy to round-off; its first rows, at energies of
+    1e-17 mJ, are round-off only and must not stop it); (2) the unstable deck without the guard runs on until the
+    state is non-finite or an element inverts, later than the guarded stop."""
+    res, hist, cols = _run_bar(tmp_path / "honest", 1.0)
+    assert res.status == "completed", res.message
+    i = {c: k for k, c in enumerate(cols)}
+    scale = np.abs(hist[:, [i["kinetic_energy"], i["internal_energy"], i["external_work"]]]).max()
+    assert np.abs(hist[:, i["energy_balance_error"]]).max() < 1e-6 * scale
+
+    guarded, _, _ = _run_bar(tmp_path / "unstable", 1.5)
+    assert guarded.status == "failed" and "energy created" in guarded.message, guarded.message
+    assert np.isfinite(guarded.final_positions).all() and np.isfinite(guarded.final_velocities).all()
+    free, _, _ = _run_bar(tmp_path / "unguarded", 1.5, guard=False)
+    assert free.status == "failed" and "energy created" not in free.message, free.message
+    assert free.t > guarded.t

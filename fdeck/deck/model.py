@@ -267,6 +267,10 @@ class QuasiStatic(Card):
 
 class EnergyBalance(Card):
     max_error: float = Field(0.01, gt=0, description="Limit of |balance error| / largest energy.")
+    stop_above: float | None = Field(None, gt=0, description="Stop the run (exit 4) as soon as energy is created "
+                                     "beyond this fraction of the largest energy so far (balance error > 0) at two "
+                                     "history rows in a row, growing: an instability caught before it blows up, with "
+                                     "a last good frame. Off when absent.")
 
 
 class HourglassCheck(Card):

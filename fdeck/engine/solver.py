@@ -197,6 +197,10 @@ def _run(problem, sink: Sink, should_stop, resume) -> Result:
     next_frame, next_hist = 0, 0
     w_ext = d_damp = 0.0
     energy0 = None
+    balance = problem.deck.checks.energy_balance
+    energy_stop = None if balance is None else balance.stop_above  # guard against created energy (opt-in)
+    energy_scale = 0.0  # largest |kinetic|, |internal|, |damping|, |external work| over the history rows so far
+    energy_prev = 0.0  # balance error / energy_scale at the previous history row
     t = 0.0
     wall0 = time.perf_counter()
     last_progress = wall0
@@ -232,7 +236,7 @@ def _run(problem, sink: Sink, should_stop, resume) -> Result:
         """Everything the loop needs to continue from the end of the current cycle (a checkpoint's engine part)."""
         loop = dict(k=k, t=t, t_step_end=t_step_end, dt_prev=dt_prev, dt_next=dt_next, dt_start=dt_start,
                     step_cycles=step_cycles, next_frame=next_frame, next_hist=next_hist, w_ext=w_ext,
-                    d_damp=d_damp, energy0=energy0, ke_rot=ke_rot)
+                    d_damp=d_damp, energy0=energy0, ke_rot=ke_rot, energy_prev=energy_prev)
         return {"scalars": loop, "arrays": {name: a.copy() for name, a in arrays.items()},
                 "directors": None if rot is None else rot.d.copy(),  # also in "objects"; here for readers
                 "objects": snapshot.capture(objects), "ledger": book.state(),
@@ -276,6 +280,9 @@ def _run(problem, sink: Sink, should_stop, resume) -> Result:
                 res.message = rr["message"]
                 res.added_mass, res.stopped_steps = list(rr["added_mass"]), list(rr["stopped_steps"])
                 res.history = [list(map(float, row)) for row in rr["history"]]
+                energy_scale = max((max(abs(r[2]), abs(r[3]), abs(r[6]), abs(r[7])) for r in res.history),
+                                   default=0.0)
+                energy_prev = sc.get("energy_prev", 0.0)
                 if resume["times"] == dict(T=T, frames=len(frame_times), history=len(hist_times)):
                     next_frame, next_hist = sc["next_frame"], sc["next_hist"]
                 else:  # steps were added: the frame and history times are spread over the new duration
@@ -340,10 +347,21 @@ def _run(problem, sink: Sink, should_stop, resume) -> Result:
                     energy0 = book.energy(ke)
                 if next_hist < len(hist_times) and t >= hist_times[next_hist] - 1e-12 * T:
                     extra = [ke_rot] if rot is not None else []
-                    row, _ = book.row(t, dt, ke, w_ext, d_damp, energy0, extra)
+                    row, error = book.row(t, dt, ke, w_ext, d_damp, energy0, extra)
                     if not all(math.isfinite(r) for r in row[:len(book.columns)]):
                         raise RunStopped("non-finite energy (NaN or overflow in forces)", t,
                                          node=first_bad_node(x, v, f_int, f_ext, f_damp))
+                    if energy_stop is not None:
+                        energy_scale = max(energy_scale, abs(row[2]), abs(row[3]), abs(row[6]), abs(row[7]))
+                        ratio = error / energy_scale if energy_scale > 0.0 else 0.0
+                        # two rows in a row above the limit, the second higher: an instability grows faster than
+                        # the energies, while round-off at the first tiny energies of a run shrinks relative to them
+                        created, energy_prev = ratio > energy_stop and energy_prev > energy_stop and \
+                            ratio > energy_prev, ratio
+                        if created:
+                            raise RunStopped(f"energy created: balance error {error:.4g} mJ is "
+                                             f"{error / energy_scale:.3g} of the largest energy {energy_scale:.4g} mJ,"
+                                             f" above checks.energy_balance.stop_above {energy_stop:g}", t)
                     for nodes in problem.reactions.values():
                         row += reaction[nodes].sum(axis=0).tolist()
                         if rot is not None:
