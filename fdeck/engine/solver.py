@@ -38,7 +38,7 @@ import numpy as np
 
 from fdeck.engine import snapshot
 from fdeck.engine.integrate import drift, kick
-from fdeck.engine.ledger import Ledger
+from fdeck.engine.ledger import CORE, Ledger
 from fdeck.engine.rotation import Rotations, drift_rot, kick_rot
 
 
@@ -51,6 +51,15 @@ class RunStopped(Exception):
         where = f" in element {element}" if element is not None else ""
         where += f" at node {node} (1-based, mesh order)" if node is not None else ""
         super().__init__(f"{cause}{where} at t = {t:.6g} s")
+
+
+_SCALE_COLUMNS = [CORE.index(c) for c in ("kinetic_energy", "internal_energy", "damping_energy", "external_work")]
+
+
+def energy_magnitude(row) -> float:
+    """Largest |kinetic|, |internal|, |damping|, |external work| of a history row: the scale the energy guard
+    compares the balance error with (as ``checks.energy_balance`` does over the whole history)."""
+    return max(abs(row[i]) for i in _SCALE_COLUMNS)
 
 
 def first_bad_node(*arrays: np.ndarray) -> int | None:
@@ -280,8 +289,7 @@ def _run(problem, sink: Sink, should_stop, resume) -> Result:
                 res.message = rr["message"]
                 res.added_mass, res.stopped_steps = list(rr["added_mass"]), list(rr["stopped_steps"])
                 res.history = [list(map(float, row)) for row in rr["history"]]
-                energy_scale = max((max(abs(r[2]), abs(r[3]), abs(r[6]), abs(r[7])) for r in res.history),
-                                   default=0.0)
+                energy_scale = max(map(energy_magnitude, res.history), default=0.0)
                 energy_prev = sc.get("energy_prev", 0.0)
                 if resume["times"] == dict(T=T, frames=len(frame_times), history=len(hist_times)):
                     next_frame, next_hist = sc["next_frame"], sc["next_hist"]
@@ -352,12 +360,12 @@ def _run(problem, sink: Sink, should_stop, resume) -> Result:
                         raise RunStopped("non-finite energy (NaN or overflow in forces)", t,
                                          node=first_bad_node(x, v, f_int, f_ext, f_damp))
                     if energy_stop is not None:
-                        energy_scale = max(energy_scale, abs(row[2]), abs(row[3]), abs(row[6]), abs(row[7]))
+                        energy_scale = max(energy_scale, energy_magnitude(row))
                         ratio = error / energy_scale if energy_scale > 0.0 else 0.0
                         # two rows in a row above the limit, the second higher: an instability grows faster than
                         # the energies, while round-off at the first tiny energies of a run shrinks relative to them
-                        created, energy_prev = ratio > energy_stop and energy_prev > energy_stop and \
-                            ratio > energy_prev, ratio
+                        created = energy_stop < energy_prev < ratio
+                        energy_prev = ratio
                         if created:
                             raise RunStopped(f"energy created: balance error {error:.4g} mJ is "
                                              f"{error / energy_scale:.3g} of the largest energy {energy_scale:.4g} mJ,"
