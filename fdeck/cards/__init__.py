@@ -5,3 +5,4 @@ from fdeck.cards import boundary, contact, elastic, fabric_hyper, fabric_membran
 from fdeck.cards import measures, named, shell_sections, solid_sections, steps  # noqa: F401
 from fdeck.cards import grip, symmetry  # noqa: F401
 from fdeck.cards import mass_scaling  # noqa: F401
+from fdeck.cards import subcycling  # noqa: F401

@@ -14,6 +14,7 @@ from fdeck.compile.mesh import MeshArrays, add_box_sets, block, plate, read_file
 from fdeck.compile.orientation import element_orientation
 from fdeck.deck.errors import unknown_name
 from fdeck.deck.model import Deck
+from fdeck.engine import subcycle
 
 registry.load_plugins()  # the kernel side of every plug-in (the deck loaded only their cards)
 
@@ -125,8 +126,9 @@ def load_mesh(deck: Deck, base: Path) -> MeshArrays:
 
 def build_groups(deck: Deck, mesh: MeshArrays) -> list:
     """One element group per section; every element must belong to exactly one section."""
-    problems, groups = [], []
+    problems, groups, recipes = [], [], []
     owner = {t: np.full(len(c), -1) for t, c in mesh.cells.items()}
+    top = max((s.subcycling.levels - 1 for s in deck.steps if s.subcycling is not None), default=0)
     for i, sec in enumerate(deck.sections):
         path = ("sections", i)
         if sec.elements not in mesh.element_sets:
@@ -179,12 +181,17 @@ def build_groups(deck: Deck, mesh: MeshArrays) -> list:
                                  f"ids {ids[bad][:10].tolist()}"))
             g.element_index, g.section_index = idx, i
             groups.append(g)
+            if top:  # subcycling: the section is rebuilt below as one group per update level
+                recipes.append(subcycle.subset_recipe(build, f"section{i}:{sec.elements}", sec, mesh.X, conn, ids,
+                                                      kind, params, orient, rho, ctype, idx, i))
     for ctype, own in owner.items():
         if (own < 0).any():
             problems.append((("sections",), f"{int((own < 0).sum())} {ctype} elements have no section, ids "
                              f"{mesh.ids[ctype][own < 0][:10].tolist()}"))
     if problems:
         raise CompileError(problems)
+    if top:
+        groups = subcycle.split_groups(groups, recipes, len(mesh.X), top)
     return groups
 
 
@@ -370,6 +377,9 @@ def compile_deck(deck: Deck, base: Path = Path(".")) -> Problem:
             measures.append(registry.MEASURES[card.type].build(card, ctx))
         except CompileError as exc:
             problems += exc.problems
+    sub = next((e for e in effects if getattr(e, "subcycles", False)), None)
+    if sub is not None:
+        problems += sub.refuse(effects)
     if problems:
         raise CompileError(problems)
     steps = plan_steps(deck, groups, mass, effects)

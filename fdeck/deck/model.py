@@ -20,6 +20,7 @@ from fdeck.cards.contact import Contact, Tool
 from fdeck.cards.checkpoint import Checkpoint
 from fdeck.cards.steps import BulkViscosity, Damping
 from fdeck.cards.mass_scaling import MassScaling
+from fdeck.cards.subcycling import Subcycling
 from fdeck.deck.section import SectionBase
 
 Vector = tuple[float, float, float]
@@ -209,6 +210,8 @@ class Step(Card):
     damping: Damping | None = None
     bulk_viscosity: BulkViscosity | None = Field(None, description="Bulk viscosity in this step ({} for the "
                                                  "defaults b1 = 0.06, b2 = 1.2); none when absent.")
+    subcycling: Subcycling | None = Field(None, description="Node steps in powers of two of the smallest in this "
+                                          "step ({} for 4 step sizes); none when absent.")
     max_cycles: int | None = Field(None, ge=1, description="End this step after this many cycles (a guard); the "
                                    "next step starts there with its own duration; summary.json names such steps.")
     min_dt_ratio: float = Field(1e-3, gt=0, lt=1, description="Stop the run (exit 4, naming the element or effect "

@@ -173,6 +173,11 @@ def run(problem, sink: Sink, should_stop=lambda: False, resume: dict | None = No
 
 
 def _run(problem, sink: Sink, should_stop, resume) -> Result:
+    sub = next((e for e in problem.effects if getattr(e, "subcycles", False)), None)
+    if sub is not None:  # steps with subcycling: a loop of its own (the uniform loop below is untouched)
+        from fdeck.engine import subcycle
+
+        return subcycle.run(problem, sink, should_stop, resume, sub)
     res = Result(columns=history_columns(problem))
     groups, effects = problem.groups, problem.effects
     book = ledger(problem)

@@ -9,3 +9,4 @@ from fdeck.physics.effects import grip, symmetry  # noqa: F401
 from fdeck.physics.measures import draw_in, wrinkles  # noqa: F401
 from fdeck.physics.elements import hex8_ans  # noqa: F401
 from fdeck.physics.effects import selective_mass  # noqa: F401
+from fdeck.physics.effects import subcycling  # noqa: F401

@@ -1,0 +1,369 @@
+"""Subcycling: explicit central differences with node steps that are powers of two of the smallest (opt-in per step,
+``steps[i].subcycling``; the deck card is ``cards.subcycling``, the ledger-facing effect ``effects.subcycling``).
+
+Scheme: the nodal partition of Belytschko, Yen & Mullen ("Mixed methods for time integration", Comput. Methods
+Appl. Mech. Engrg. 17/18, 1979) with integer step ratios 2^k, as analysed for explicit-explicit partitions by
+Smolinski, Sleith & Belytschko ("Stability of an explicit multi-time step integration algorithm for linear structural
+dynamics equations", Comput. Mech. 18, 1996):
+
+* every element e gets a level b_e, the largest k <= L with 2^k dt_min <= dt_e (its own stable step, dt_min the
+  smallest); a node takes the smallest level of its elements, n_a = min_e b_e, and is integrated with the step
+  2^(n_a) h (h = dt_safety dt_min): its velocity is kicked only at its own times, with the central-difference
+  average of its previous and next steps, and it drifts with that constant velocity in between;
+* an element is updated at the rate of its fastest node, u_e = min_a n_a (so every node that is kicked sees fresh
+  forces from all its elements); elements are built into one group per (section, u) with the formulation's own
+  build hook on element subsets, so the element kernels are untouched;
+* the slow nodes' positions at the minor times are the linear interpolation of BYM (constant velocity over their
+  step), which is what drifting every node every minor step with its current velocity gives;
+* an element never runs above its own step: the largest step among its nodes is 2^(m_e) h with m_e = max_a n_a
+  <= b_e; at every synchronised time (the end of a major cycle, 2^L minor steps) the levels are re-derived from the
+  current element steps ("regrouping": an element drops to a lower level as soon as its step falls below its bin's,
+  and returns, at most to its compile-time level, when it recovers); the groups' membership is fixed at compile time,
+  so a group containing an element that now needs a faster rate runs at that rate as a whole (no state is moved
+  between groups); every group update in between measures the ratio of the step its slowest node uses to its own
+  current step (``step_ratio_max``, must stay below 1) and counts the updates where it exceeded dt_safety.
+
+Why this scheme: it is explicit at every node (no interface solve), needs no change to the element kernels (BYM's
+interpolation is the drift of the central-difference update itself), and its stability for nodal partitions is
+proved (pseudo-energy argument of Smolinski et al. 1996) with the element-wise bound used here. Daniel ("The subcycled
+Newmark algorithm", Comput. Mech. 20, 1997) showed that undamped BYM subcycling has narrow unstable bands of the step
+that get narrower as the model grows and that placing interface elements with the faster partition narrows them
+further; that is the partition used here (u_e = min_a n_a). Neal & Belytschko's non-integer ratios (Comput. Struct.
+31, 1989) are not needed with powers of two. The energy is not conserved exactly at the interface, so the ledger
+measures it: history rows (and frames) are taken only at synchronised times, where every node has just been kicked
+(kinetic energy from the mean of the velocities before and after, as the uniform engine) and every group was updated
+(stored energies); the work of external forces and reactions is the trapezoidal rule over each node's own step.
+
+Not supported (refused at compile time by ``effects.subcycling``): shells and rotations, non-hexahedral groups,
+selective mass scaling, contact and moving tools, section effects, damping and bulk viscosity, checkpoints/restart.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from fdeck.compile.orientation import ElementOrientation
+from fdeck.jit import njit_parallel, prange
+
+# -- levels -------------------------------------------------------------------------------------------------------
+
+
+def element_levels(dt_e: np.ndarray, dt_min: float, top: int) -> np.ndarray:
+    """(n_el,) int64: the largest k <= top with 2^k dt_min <= dt_e (0 where dt_e < 2 dt_min)."""
+    ratio = np.asarray(dt_e, float) / dt_min
+    with np.errstate(divide="ignore"):
+        k = np.floor(np.log2(np.maximum(ratio, 1.0)))
+    k = np.where(np.isfinite(k), k, top)
+    k = k - (np.exp2(k) > ratio)  # log2 may round up just below a power of two
+    return np.clip(k, 0, top).astype(np.int64)
+
+
+def static_plan(groups: list, n_node: int, top: int):
+    """Levels from the groups' rest steps: (own, node, update, highest) of ``node_levels`` with own b_e per group."""
+    dt_e = [g.rest_dt(g.rho) for g in groups]
+    dt_min = min(float(d.min()) for d in dt_e)
+    own = [element_levels(d, dt_min, top) for d in dt_e]
+    return (own,) + node_levels(groups, own, n_node, top)
+
+
+def node_levels(groups: list, own: list[np.ndarray], n_node: int, top: int):
+    """From the elements' own levels ``own`` (per group (n_el,)): (node, update, highest) with node (n_node,) the
+    node levels n_a = min over the node's elements of b_e, graded so that the levels of an element's nodes differ
+    by at most one (``top`` at nodes without elements); per group (n_el,) update levels u_e = min over the element's
+    nodes of n_a and m_e = max over them."""
+    node = np.full(n_node, top, np.int64)
+    for g, b in zip(groups, own):
+        np.minimum.at(node, g.conn.ravel(), np.repeat(b, g.conn.shape[1]))
+    for _ in range(top):  # grade: across any element the node steps differ by at most a factor 2
+        for g in groups:
+            np.minimum.at(node, g.conn.ravel(), np.repeat(node[g.conn].min(axis=1) + 1, g.conn.shape[1]))
+    update = [node[g.conn].min(axis=1) for g in groups]
+    highest = [node[g.conn].max(axis=1) for g in groups]
+    return node, update, highest
+
+
+def subset_recipe(build, name, section, X, conn, ids, kind, params, orient, rho, ctype, idx, section_index):
+    """A function (sel, level) -> element group of the elements ``sel`` (local indices) of one section, built by the
+    formulation's own hook exactly as ``compile.problem.build_groups`` builds the whole section."""
+
+    def make(sel: np.ndarray, level: int):
+        o = ElementOrientation(orient.reference[sel], orient.warp_angle[sel], orient.normal)
+        g = build(f"{name}/level{level}", section, X, conn[sel], ids[sel], kind, np.array(params[sel]), o,
+                  rho[sel], ctype)
+        g.element_index, g.section_index = idx[sel], section_index
+        return g
+
+    return make
+
+
+def split_groups(groups: list, recipes: list, n_node: int, top: int) -> list:
+    """Groups split by update level (one group per section and level present); a group with one level stays as it
+    is, as do groups that are not hexahedra (the subcycling card refuses those)."""
+    _, _, update, _ = static_plan(groups, n_node, top)
+    out = []
+    for g, make, u in zip(groups, recipes, update):
+        levels = np.unique(u)
+        if not g.solid or len(levels) == 1:
+            out.append(g)
+            continue
+        out += [make(np.flatnonzero(u == k), int(k)) for k in levels]
+    return out
+
+
+def regroup(sub, groups: list, dt_min: float) -> bool:
+    """Re-derive the levels from the elements' current steps (the groups' ``dt_e`` must be current), each element
+    at most at its compile-time level (its group's membership is fixed): sets ``sub.node``, ``sub.group_level``
+    (a group runs at the fastest rate any of its elements now needs) and ``sub.highest``. Returns whether anything
+    changed (nothing is recomputed when no element changed level)."""
+    own = [np.minimum(element_levels(g.dt_e, dt_min, sub.top), b) for g, b in zip(groups, sub.own)]
+    if all(np.array_equal(a, b) for a, b in zip(own, sub.own_now)):
+        return False
+    sub.own_now = own
+    sub.node, update, sub.highest = node_levels(groups, own, len(sub.node), sub.top)
+    sub.group_level = [int(u.min()) for u in update]
+    return True
+
+
+def trailing_zeros(i: int) -> int:
+    return (i & -i).bit_length() - 1
+
+
+# -- node kernels -------------------------------------------------------------------------------------------------
+
+
+@njit_parallel
+def kick_nodes(idx, level, h, v, v_old, inv_m, f_ext, f_int, h_prev, dt_avg):
+    """Nodes idx start a step of 2^level h [s]: dt_avg = (h_prev + that) / 2, v_old = v, v += dt_avg (f_ext - f_int)
+    / m. Shapes: idx (k,), level (n_node,) int, v, v_old, f_ext, f_int (n_node, 3), inv_m, h_prev, dt_avg (n_node,)."""
+    for j in prange(idx.shape[0]):
+        a = idx[j]
+        step = h * (1 << level[a])
+        d = 0.5 * (h_prev[a] + step)
+        dt_avg[a] = d
+        h_prev[a] = step
+        for i in range(3):
+            v_old[a, i] = v[a, i]
+            v[a, i] += d * inv_m[a] * (f_ext[a, i] - f_int[a, i])
+
+
+@njit_parallel
+def book_nodes(idx, m, v, v_old, f_ext, f_int, dt_avg, fe_prev, dx, reaction):
+    """After the constraints, at the nodes idx just kicked: reaction = m (v - v_old) / dt_avg - (f_ext - f_int), the
+    work of f_ext + reaction over each node's last step dx by the trapezoidal rule (returned, [mJ]); then
+    fe_prev = f_ext + reaction and dx = 0 (``drift_nodes`` accumulates the next step's displacement)."""
+    w = 0.0
+    for j in prange(idx.shape[0]):
+        a = idx[j]
+        for i in range(3):
+            r = m[a] * (v[a, i] - v_old[a, i]) / dt_avg[a] - (f_ext[a, i] - f_int[a, i])
+            reaction[a, i] = r
+            fe = f_ext[a, i] + r
+            w += 0.5 * (fe_prev[a, i] + fe) * dx[a, i]
+            fe_prev[a, i] = fe
+            dx[a, i] = 0.0
+    return w
+
+
+@njit_parallel
+def drift_nodes(x, v, dx, h):
+    """Every node moves h v (its constant velocity over its own step: BYM's linear interpolation), dx += h v."""
+    for a in prange(x.shape[0]):
+        for i in range(3):
+            d = h * v[a, i]
+            dx[a, i] += d
+            x[a, i] += d
+
+
+@njit_parallel
+def kinetic(m, v, v_old, first):
+    """Kinetic energy [mJ] at a synchronised time (every node just kicked): v = (v_old + v) / 2 (v_old on the first
+    cycle, the initial velocity)."""
+    ke = 0.0
+    for a in prange(v.shape[0]):
+        for i in range(3):
+            vn = v_old[a, i] if first else 0.5 * (v_old[a, i] + v[a, i])
+            ke += 0.5 * m[a] * vn * vn
+    return ke
+
+
+# -- the loop -----------------------------------------------------------------------------------------------------
+
+
+def run(problem, sink, should_stop, resume, sub):
+    """``engine.solver.run`` for a problem with subcycling (``sub``: the ``effects.subcycling`` effect)."""
+    from fdeck.engine.solver import (Result, RunStopped, _Timer, energy_magnitude, history_columns, ledger,
+                                     step_setter)
+
+    res = Result(columns=history_columns(problem))
+    groups, effects = problem.groups, problem.effects
+    X = problem.X
+    n = len(X)
+    x, v = X.copy(), np.zeros((n, 3))
+    res.final_positions, res.final_velocities, res.final_directors = x, v, None
+    if resume is not None:
+        res.status = "failed"
+        res.message = "a run with subcycling cannot continue from a checkpoint (its per-level state is not saved)"
+        return res
+    book = ledger(problem)
+    forcing = [e for e in effects if e.forces is not None]
+    constraints = [e for e in effects if e.constrains]
+    f_int, f_ext = np.zeros((n, 3)), np.zeros((n, 3))
+    v_old, fe_prev, dx, reaction = (np.zeros((n, 3)) for _ in range(4))
+    h_prev, dt_avg = np.zeros(n), np.zeros(n)
+    timer = _Timer()
+    T = problem.duration
+    frame_times = np.linspace(0.0, T, problem.deck.output.frames + 1)
+    hist_times = np.linspace(0.0, T, problem.deck.output.history_points)
+    next_frame, next_hist = 0, 0
+    w_ext, energy0, H_prev = 0.0, None, 0.0
+    balance = problem.deck.checks.energy_balance
+    energy_stop = None if balance is None else balance.stop_above
+    energy_scale = energy_prev = 0.0
+    sizes = [len(g.conn) for g in groups]
+    t = 0.0
+    wall0 = last_progress = time.perf_counter()
+
+    def update(g, t):
+        g.update(x, v)
+        g.add_forces(f_int)
+        jmin, el = g.worst_jacobian()
+        if not jmin > 0.0:
+            raise RunStopped("element inverted (det F <= 0)" if jmin <= 0.0 else "non-finite deformation (NaN)", t,
+                             el)
+
+    try:
+        t_step_end = 0.0
+        for k, plan in enumerate(problem.steps):
+            t_step_end += plan.duration
+            for g, rho in zip(groups, plan.rho):
+                g.set_density(rho)
+            m = plan.mass
+            inv_m = 1.0 / m
+            for e in effects:
+                e.begin_step(k, plan)
+            if k == 0:
+                for g in groups:
+                    update(g, 0.0)
+                for e in forcing:
+                    e.add_force(0.0, x, v, f_ext)
+            res.added_mass.append(plan.added_mass)
+            step_cycles = 0
+            collapse = getattr(problem.deck.steps[k], "min_dt_ratio", 0.0)
+            dt_start = None
+            while t < t_step_end * (1 - 1e-12):
+                stop = should_stop()
+                if stop:
+                    res.status = "interrupted"
+                    res.message = stop if isinstance(stop, str) else f"stopped by signal at t = {t:.6g} s"
+                    break
+                if plan.max_cycles is not None and step_cycles >= plan.max_cycles:
+                    res.stopped_steps.append(plan.name)
+                    res.message = (f"step '{plan.name}' stopped at max_cycles = {plan.max_cycles}, "
+                                   f"t = {t:.6g} s of {t_step_end:.6g} s")
+                    t_step_end = t
+                    break
+                t0 = time.perf_counter()
+                # synchronised time: every group is current; the step and the levels of the next major cycle
+                dt_min = min([g.stable_dt() for g in groups] + [e.stable_dt() for e in effects])
+                h = plan.dt_safety * dt_min
+                dt_start = h if dt_start is None else dt_start
+                if h < collapse * dt_start:
+                    raise RunStopped(f"stable time step collapsed to {h:.3g} s, below {collapse:g} x the step's first "
+                                     f"{dt_start:.3g} s (steps[{k}].min_dt_ratio), set by "
+                                     f"{step_setter(groups, effects)}", t)
+                sub.regroups += regroup(sub, groups, dt_min)
+                cap = min(sub.caps[k], int(sub.node.max()))  # a major cycle no longer than the slowest node's step
+                remaining = t_step_end - t
+                while cap > 0 and (1 << cap) * h > remaining:  # the step's end is a synchronised time
+                    cap -= 1
+                h = min(h, remaining / (1 << cap))
+                if not h > 0.0 or not math.isfinite(h):
+                    raise RunStopped(f"stable time step is {h:.3g} s", t)
+                N = 1 << cap
+                level = np.minimum(sub.node, cap)
+                g_level = [min(int(u), cap) for u in sub.group_level]
+                below = [np.flatnonzero(level <= j) for j in range(cap + 1)]  # nodes kicked when level j is due
+                used = [h * np.exp2(np.minimum(mh, cap)) for mh in sub.highest]  # step of each element's slowest node
+                sub.cap = cap
+                for i in range(N):
+                    due = cap if i == 0 else trailing_zeros(i)
+                    idx = below[due]
+                    kick_nodes(idx, level, h, v, v_old, inv_m, f_ext, f_int, h_prev, dt_avg)
+                    for c in constraints:
+                        c.constrain(t + h, h, x, v)
+                    w_ext += book_nodes(idx, m, v, v_old, f_ext, f_int, dt_avg, fe_prev, dx, reaction)
+                    if i == 0:  # ledger at the synchronised time t
+                        ke = kinetic(m, v, v_old, res.cycles == 0)
+                        H = N * h
+                        book.integrate(0.5 * (H_prev + H) if H_prev > 0 else 0.5 * H)
+                        H_prev = H
+                        if not math.isfinite(ke):
+                            raise RunStopped("non-finite energy (NaN or overflow in forces)", t)
+                        if energy0 is None:
+                            energy0 = book.energy(ke)
+                        if next_hist < len(hist_times) and t >= hist_times[next_hist] - 1e-12 * T:
+                            row, error = book.row(t, h, ke, w_ext, 0.0, energy0, [])
+                            if not all(math.isfinite(r) for r in row[:len(book.columns)]):
+                                raise RunStopped("non-finite energy (NaN or overflow in forces)", t)
+                            if energy_stop is not None:
+                                energy_scale = max(energy_scale, energy_magnitude(row))
+                                ratio = error / energy_scale if energy_scale > 0.0 else 0.0
+                                created = energy_stop < energy_prev < ratio
+                                energy_prev = ratio
+                                if created:
+                                    raise RunStopped(f"energy created: balance error {error:.4g} mJ is {ratio:.3g} "
+                                                     f"of the largest energy {energy_scale:.4g} mJ, above "
+                                                     f"checks.energy_balance.stop_above {energy_stop:g}", t)
+                            for nodes in problem.reactions.values():
+                                row += reaction[nodes].sum(axis=0).tolist()
+                            for meas in problem.measures:
+                                row += meas.evaluate(x, v)
+                            res.history.append(row)
+                            sink.history(row)
+                            while next_hist < len(hist_times) and hist_times[next_hist] <= t + 1e-12 * T:
+                                next_hist += 1
+                    drift_nodes(x, v, dx, h)
+                    t += h
+                    res.cycles += 1
+                    step_cycles += 1
+                    t0 = timer.add("integrator", t0)
+                    due = cap if i + 1 == N else trailing_zeros(i + 1)
+                    f_int.fill(0.0)
+                    f_ext.fill(0.0)
+                    for j, (g, gl) in enumerate(zip(groups, g_level)):
+                        if gl <= due:
+                            update(g, t)
+                            sub.element_cycles += sizes[j]
+                            g.stable_dt()  # current dt_e: no element may run above its own step
+                            worst = float((used[j] / g.dt_e).max())
+                            sub.step_ratio_max = max(sub.step_ratio_max, worst)
+                            sub.over_safety += int(worst > plan.dt_safety * (1 + 1e-12))
+                            t0 = timer.add(g.name, t0)
+                    for e in forcing:
+                        e.add_force(t, x, v, f_ext)
+                    t0 = timer.add("loads", t0)
+                sub.element_cycles_uniform += N * sum(sizes)
+                for j in range(sub.top + 1):  # steps of the nodes of each plan level (capped this cycle)
+                    sub.level_cycles[j] += N >> min(j, cap)
+                res.dt_min, res.dt_max = min(res.dt_min, h), max(res.dt_max, h)
+                if next_frame < len(frame_times) and t >= frame_times[next_frame] - 1e-12 * T:
+                    sink.frame(t, x, v)
+                    while next_frame < len(frame_times) and frame_times[next_frame] <= t + 1e-12 * T:
+                        next_frame += 1
+                now = time.perf_counter()
+                if now - last_progress > 0.5:
+                    sink.progress(t, res.cycles, h)
+                    last_progress = now
+            if res.status == "interrupted":
+                break
+        if res.status == "running":
+            res.status = "completed"
+    except RunStopped as exc:
+        res.status, res.message = "failed", str(exc)
+    res.t = t
+    res.wall = time.perf_counter() - wall0
+    res.timings = timer.acc
+    return res

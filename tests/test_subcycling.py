@@ -1,0 +1,247 @@
+"""Subcycling (``engine.subcycle``, ``steps[i].subcycling``): a bar of a stiff and a soft half struck by a force
+pulse runs its soft half at 8x the step and transmits and reflects the pulse as the uniform step does and as the
+impedance ratio predicts, with the energy balance closed, momentum equal to the impulse, no element above its own
+stable step, and the cycles of each level counted; unsupported combinations are refused with located errors."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from fdeck.compile.errors import CompileError
+from fdeck.compile.problem import compile_deck
+from fdeck.deck.model import Deck
+from fdeck.engine import solver
+
+RHO, E1, RATIO = 7.8e-9, 210000.0, 70.0  # soft half: E1 / 70, so its wave speed is 8.37x lower (own level 3)
+C1 = math.sqrt(E1 / RHO)  # [mm/s]
+F0 = 100.0  # peak of the force pulse [N]
+# lengths in mm (1 mm elements, 1 mm^2 section); times in units of 1 mm / C1. The pulse is 128 stiff elements long
+# (15 soft elements); stiff probe at 96, interface at 192, soft probe 8 mm into the soft half, far end at 256:
+# at T/2 = 224 the incident pulse has passed the stiff probe (96 + 128) and the reflection has not come back
+# (2 * 192 - 96 = 288); at T = 448 the reflection has passed it (288 + 128 = 416 < 448) and its re-reflection from the
+# free loaded end has not arrived (384 + 96 = 480), and the transmitted pulse has passed the soft probe
+# (192 + 8.37 * 8 + 128 = 387) while the far end's reflection has not (192 + 8.37 * 120 > 448).
+L1, L2, PULSE, T, STIFF_PROBE, SOFT_PROBE = 192, 64, 128.0, 448.0, 96.0, 200.0
+
+
+def amplitude_points() -> list[list[float]]:
+    """sin^2 pulse of duration PULSE / C1 as a 65-point table (the load is exactly its piecewise-linear form)."""
+    tau = PULSE / C1
+    ts = np.linspace(0.0, tau, 65)
+    return [[float(t), float(np.sin(np.pi * t / tau) ** 2)] for t in ts] + [[2 * T / C1, 0.0]]
+
+
+def bar(levels: int | None, **step) -> dict:
+    """The two-material bar, uniaxial (Poisson 0, lateral faces free), loaded by F0 x pulse at x = 0 (free end)."""
+    s = {"name": "pulse", "duration": T / C1, **step}
+    if levels:
+        s["subcycling"] = {"levels": levels}
+    return {"title": "bar", "units": "mm-t-s-N-MPa",
+            "mesh": {"block": {"size": [L1 + L2, 1, 1], "divisions": [L1 + L2, 1, 1]},
+                     "element_sets": {"stiff": {"box": [[0, 0, 0], [L1, 1, 1]]},
+                                      "soft": {"box": [[L1, 0, 0], [L1 + L2, 1, 1]]}}},
+            "materials": {"a": {"type": "linear_elastic", "density": RHO, "youngs_modulus": E1, "poisson_ratio": 0.0},
+                          "b": {"type": "linear_elastic", "density": RHO, "youngs_modulus": E1 / RATIO,
+                                "poisson_ratio": 0.0}},
+            "sections": [{"elements": "stiff", "material": "a", "formulation": "full"},
+                         {"elements": "soft", "material": "b", "formulation": "full"}],
+            "amplitudes": {"pulse": {"type": "tabular", "points": amplitude_points()}},
+            "loads": [{"type": "nodal_force", "nodes": "xmin", "force": [F0, 0, 0], "distribution": "total",
+                       "amplitude": "pulse"}],
+            "steps": [s], "output": {"frames": 2, "history_points": 2000}}
+
+
+class Frames(solver.Sink):
+    def __init__(self):
+        self.frames = []
+
+    def frame(self, t, x, v, point_fields=None):
+        self.frames.append((t, x.copy(), v.copy()))
+
+
+def run(levels):
+    """(problem, result, frames, group update calls) of the bar; update calls counted by wrapping each group."""
+    problem = compile_deck(Deck.model_validate(bar(levels)))
+    calls = [0] * len(problem.groups)
+    for j, g in enumerate(problem.groups):
+        def counted(x, v, _update=g.update, _j=j):
+            calls[_j] += 1
+            _update(x, v)
+        g.update = counted
+    sink = Frames()
+    result = solver.run(problem, sink)
+    assert result.status == "completed", result.message
+    return problem, result, sink.frames, calls
+
+
+@pytest.fixture(scope="module")
+def runs():
+    return {"uniform": run(None), "subcycled": run(4)}
+
+
+def probe(problem, u: np.ndarray, x0: float) -> float:
+    """Mean axial displacement [mm] of the 4 nodes at x = x0."""
+    return float(u[np.isclose(problem.X[:, 0], x0), 0].mean())
+
+
+def pulse_displacements(problem, result, frames):
+    """(incident at the stiff probe, incident + reflected there, transmitted at the soft probe) [mm]: the time
+    integrals of the velocity pulses, read as displacement plateaus."""
+    t_half, x_half, _ = frames[-2]
+    assert 224.0 <= t_half * C1 < 288.0  # the frame is inside the plateau between incident and reflection
+    u_end = result.final_positions - problem.X
+    return (probe(problem, x_half - problem.X, STIFF_PROBE), probe(problem, u_end, STIFF_PROBE),
+            probe(problem, u_end, SOFT_PROBE))
+
+
+def test_waves_match_uniform_step_and_impedance_ratio(runs):
+    """Requirement: transmitted and reflected pulses of the subcycled run equal the uniform-step run's within 1 % and
+    the closed-form impedance-ratio coefficients within 1 %.
+
+    Reference: a pulse of impulse I = F0 int(a) dt on the free end of a bar of impedance Z1 = A sqrt(E1 rho) moves the
+    material behind it by D = I / Z1; at the interface to Z2 = Z1 / sqrt(70) the velocity is reflected with
+    R = (Z1 - Z2) / (Z1 + Z2) and transmitted with T = 2 Z1 / (Z1 + Z2) (one-dimensional waves). Tolerance 1 %: the
+    pulse spans 128 stiff and 15 soft elements, so the mesh's dispersion changes the plateaus by well under that
+    (measured: at most 0.016 % between the runs, at most 0.07 % against the closed form)."""
+    problem, result, frames, _ = runs["uniform"]
+    sub = runs["subcycled"]
+    d_u = pulse_displacements(problem, result, frames)
+    d_s = pulse_displacements(sub[0], sub[1], sub[2])
+    impulse = F0 * np.trapezoid(*np.array(amplitude_points()).T[::-1])
+    z1 = math.sqrt(E1 * RHO)
+    z2 = z1 / math.sqrt(RATIO)
+    D = impulse / z1
+    R, Tc = (z1 - z2) / (z1 + z2), 2 * z1 / (z1 + z2)
+    for name, (inc, both, trans) in (("uniform", d_u), ("subcycled", d_s)):
+        assert inc == pytest.approx(D, rel=0.01), name
+        assert both / inc - 1 == pytest.approx(R, rel=0.01), name
+        assert trans / inc == pytest.approx(Tc, rel=0.01), name
+    for a, b in zip(d_s, d_u):
+        assert a == pytest.approx(b, rel=0.01)
+    assert (d_s[1] - d_s[0]) == pytest.approx(d_u[1] - d_u[0], rel=0.01)  # the reflected pulse alone
+
+
+def test_energy_balance_and_momentum(runs):
+    """Requirement: the subcycled run's energy balance error stays within 0.5 % of the largest energy at every
+    synchronised history row, and the total momentum at the end equals the applied impulse within 0.1 %.
+
+    References: the ledger's balance (kinetic + stored - external work = its start value) and Newton's second law for
+    the free bar (momentum = int F dt). Tolerances: BYM subcycling does not conserve energy exactly at the interface;
+    its error is first order in the slow nodes' step (measured: peak 0.55 %, 0.24 %, 0.11 % for pulses of 8, 15, 30
+    soft elements, the uniform step 0.05 %, 0.01 %, 0.003 %), so 0.5 % holds with margin at 15 (measured 0.24 %);
+    the slow nodes receive the interface forces only at their own times, so momentum is kept to the truncation error
+    of the step, not to round-off (measured 5e-6 relative, the uniform step 1.2e-6): 0.1 %."""
+    problem, result, _, _ = runs["subcycled"]
+    h = np.array(result.history)
+    col = {c: i for i, c in enumerate(result.columns)}
+    scale = np.abs(h[:, [col["kinetic_energy"], col["internal_energy"], col["external_work"]]]).max()
+    assert np.abs(h[:, col["energy_balance_error"]]).max() <= 0.005 * scale
+    assert len(h) > 50  # rows at synchronised times over the whole run
+    impulse = F0 * np.trapezoid(*np.array(amplitude_points()).T[::-1])
+    momentum = float((problem.steps[0].mass * result.final_velocities[:, 0]).sum())
+    assert momentum == pytest.approx(impulse, rel=0.001)
+
+
+def test_levels_steps_and_cycle_counts(runs):
+    """Requirement: the soft half runs at level 3 (8x the step), no element's slowest node ever uses a step above the
+    element's own stable step, each group is updated exactly once per step of its level, and the element updates
+    saved match the levels.
+
+    References: closed-form wave speeds c = sqrt(E / rho) of the two halves: an element's slowest node step
+    2^m h must not exceed its own step L / c, with h = 0.9 x (1 mm / C1) (stiff elements set it), i.e.
+    2^m <= C1 / c; exact integer counts for the updates (each group once at t = 0 and then N / 2^u times per major
+    cycle of N minor steps, as many as its level's node steps)."""
+    problem, result, _, calls = runs["subcycled"]
+    sub = next(e for e in problem.effects if e.name == "subcycling")
+    c_soft = math.sqrt(E1 / RATIO / RHO)
+    for g, m in zip(problem.groups, sub.highest):
+        c = C1 if g.section_index == 0 else c_soft
+        assert (np.exp2(m) <= C1 / c).all()
+    assert max(int(o.max()) for o in sub.own) == 3
+    assert 0.0 < sub.step_ratio_max < 1.0  # measured, every update: slowest node step / element's current step
+    assert sub.level_cycles[0] == result.cycles
+    for g, u, n in zip(problem.groups, sub.group_level, calls):
+        assert n == sub.level_cycles[u] + 1, g.name
+    sizes = [len(g.conn) for g in problem.groups]
+    assert sub.element_cycles == sum(s * (n - 1) for s, n in zip(sizes, calls))
+    assert sub.element_cycles_uniform == result.cycles * sum(sizes)
+    # the soft elements away from the interface (all but 3 graded ones) update every 8th cycle
+    expected = (L1 + 3 + (L2 - 3) / 8) / (L1 + L2)
+    assert sub.element_cycles / sub.element_cycles_uniform == pytest.approx(expected, rel=0.02)
+
+
+def test_single_level_is_the_uniform_loop():
+    """Requirement: when every element's own level is 0 (both halves of one material), the subcycled loop performs the
+    uniform central-difference update: final positions and velocities bitwise equal, same cycle count.
+    Reference: the uniform engine (``engine.solver``) on the same deck without the card; exact, because both loops
+    do the same floating-point operations in the same order (one thread)."""
+    out = []
+    for levels in (None, 4):  # (both runs are serial: solver.run takes one thread below SERIAL_BELOW elements)
+        data = bar(levels)
+        data["materials"]["b"] = data["materials"]["a"]
+        data["steps"][0]["duration"] = 60.0 / C1  # the pulse is in the stiff bar only: a short run suffices
+        out.append(solver.run(compile_deck(Deck.model_validate(data)), solver.Sink()))
+    assert out[0].cycles == out[1].cycles > 50
+    assert np.array_equal(out[0].final_positions, out[1].final_positions)
+    assert np.array_equal(out[0].final_velocities, out[1].final_velocities)
+    assert np.abs(out[0].final_velocities).max() > 0  # the pulse has moved the bar
+
+
+def test_regroup_when_steps_fall():
+    """Requirement: when elements' steps fall relative to the smallest (a second step with mass scaling raises the
+    stiff half's step 4x, so the soft half's own level drops from 3 to 1), the levels are re-derived and no element
+    ever runs above its own stable step.
+
+    Reference: closed form, the soft elements' own step is sqrt(70) = 8.37 stiff-element steps and the second step's
+    smallest is 4 of them: own level floor(log2(8.37 / 4)) = 1; without regrouping the soft nodes would run at
+    8 x 0.9 x 4 = 28.8 stiff-element steps, 3.4x their own. Tolerance on the measured step ratio: dt_safety 0.9 plus
+    0.1 % for the change of the moduli within one major cycle (the check is at every group update)."""
+    data = bar(4)
+    first = dict(data["steps"][0], duration=20.0 / C1)
+    dt1 = 0.9 / C1  # stiff element's step x dt_safety (1 mm elements)
+    second = dict(data["steps"][0], name="scaled", duration=60.0 / C1, mass_scaling={"target_dt": 4 * dt1})
+    data["steps"] = [first, second]
+    problem = compile_deck(Deck.model_validate(data))
+    result = solver.run(problem, solver.Sink())
+    assert result.status == "completed", result.message
+    sub = next(e for e in problem.effects if e.name == "subcycling")
+    assert sub.regroups >= 1
+    soft = [o for g, o in zip(problem.groups, sub.own_now) if g.section_index == 1]
+    assert max(int(o.max()) for o in soft) == int(math.floor(math.log2(math.sqrt(RATIO) / 4)))
+    assert sub.step_ratio_max <= 0.9 * 1.001
+
+
+@pytest.mark.parametrize("change, where, words", [
+    ({"damping": {"mass_proportional": 10.0}}, ("steps", 0, "subcycling"), "damping"),
+    ({"mass_scaling": {"factor": 2.0, "selective": True}}, ("steps", 0, "subcycling"), "selective"),
+])
+def test_refused_combinations(change, where, words):
+    """Requirement: a combination the subcycled loop does not integrate is a located compile error, not a wrong run.
+    Reference: the card's path and the other setting named in the message."""
+    data = bar(4, **change)
+    with pytest.raises(CompileError) as exc:
+        compile_deck(Deck.model_validate(data))
+    assert any(p == where and words in m for p, m in exc.value.problems)
+
+
+def test_checkpoints_refused():
+    """Requirement: checkpoints with subcycling are refused at the card (the per-level state is not saved).
+    Reference: the card's path and the message."""
+    data = bar(4)
+    data["output"]["checkpoint"] = {"every": 100}
+    with pytest.raises(CompileError) as exc:
+        compile_deck(Deck.model_validate(data))
+    assert any(p == ("steps", 0, "subcycling") and "checkpoint" in m for p, m in exc.value.problems)
+
+
+def test_levels_card_validated():
+    """Requirement: fewer than two step sizes is a located validation error at steps[0].subcycling.levels.
+    Reference: the card's bound (ge=2)."""
+    from pydantic import ValidationError
+
+    with pytest.raises(ValidationError) as exc:
+        Deck.model_validate(bar(None, subcycling={"levels": 1}))
+    assert any(e["loc"][:4] == ("steps", 0, "subcycling", "levels") for e in exc.value.errors())
