@@ -15,6 +15,18 @@ increment); fdeck's come from summary.json. Both the wall time and the processor
 system, from `resource`) are recorded: on a machine shared with other work the processor time of a one-thread run is
 the steadier figure, the wall time is what a user waits for.
 
+At 100 000 elements one round takes several minutes (a C3D8 increment of CalculiX costs about 0.8 s there), so
+rounds can be gathered by separate invocations: each row keeps its per-round samples, and `--add` pools the rounds
+of this invocation with those already in peers.json for the same configuration (the code measured, a snapshot of
+HEAD as in benchmarks/forming_cost.py, must be the same commit, or the old rounds are dropped). `--sizes 100000`
+measures one size and keeps the rows of the other in peers.json. The load average before and after each
+configuration's pair of runs is recorded with it: on a shared machine the figures are only as steady as the load.
+
+    python benchmarks/bench.py --peers                                   # 10 k and 100 k, 2 rounds
+    python benchmarks/peers.py --sizes 100000 --rounds 1 [--add]         # one round of 100 k, pooled with --add
+    python benchmarks/peers.py --sizes 100000 --threads 1 --rounds 1     # one thread count only
+    python benchmarks/peers.py --report
+
 Writes benchmarks/peers.json; `--report` prints the markdown table the README shows.
 """
 
@@ -39,8 +51,10 @@ SIZES = {10_000: (20, 20, 25), 100_000: (40, 50, 50)}
 PAIRS = (("C3D8", "full"), ("C3D8R", "reduced"))
 CYCLES = {10_000: (20, 120), 100_000: (6, 30)}  # short, long: ccx's increments (C3D8 takes half as many)
 # fdeck's cycles per ccx increment: its cycle is 10-30x cheaper, and the long run must outlast the start-up's noise
-# (loading numba's cache, about 1-3 s) by far: at 10x the difference of a reduced run was below that noise
-FDECK_SCALE = {10_000: 40, 100_000: 20}
+# (loading numba's cache, about 1-3 s) by far: at 10x the difference of a reduced run was below that noise. At
+# 100 000 elements 5x gives as many element-cycles per increment as 40x at 10 000 (a 100 k round then fits in about
+# 7 minutes on one loaded thread)
+FDECK_SCALE = {10_000: 40, 100_000: 5}
 
 
 CCX_DT = 6.38e-8  # [s] about CalculiX's Courant step of this block (it selects its own and reports it)
@@ -125,6 +139,9 @@ def run_ccx(work: Path, div, etype: str, cycles: int, threads: int) -> dict:
     return {"wall": wall, "cpu": cpu, "cycles": n, "ok": proc.returncode == 0 and n > 0}
 
 
+SNAPSHOT: dict = {}  # {"src": folder of HEAD's tree, "commit": its hash} once measure() has made it
+
+
 def run_fdeck(work: Path, div, form: str, cycles: int, threads: int) -> dict:
     import yaml
 
@@ -132,57 +149,105 @@ def run_fdeck(work: Path, div, form: str, cycles: int, threads: int) -> dict:
     deck.write_text(yaml.safe_dump(fdeck_deck(div, form, cycles)))
     out = work / f"{form}_{cycles}_out"
     env = dict(os.environ, NUMBA_NUM_THREADS=str(threads))
+    if SNAPSHOT:
+        env["PYTHONPATH"] = os.pathsep.join([SNAPSHOT["src"]] + [p for p in [os.environ.get("PYTHONPATH")] if p])
     wall, cpu, proc = _timed([sys.executable, "-m", "fdeck.cli", "run", str(deck), "-o", str(out)], env, work)
     summary = json.loads((out / "summary.json").read_text()) if (out / "summary.json").exists() else {}
     return {"wall": wall, "cpu": cpu, "cycles": summary.get("cycles", 0), "ok": proc.returncode in (0, 3)}
 
 
-def measure(rounds: int = 2, sizes=(10_000, 100_000)) -> dict:
+def _row(code, elem, t, n_el, pairs, loads) -> dict:
+    """One configuration's row from its rounds: per round the cost per element-cycle (wall and processor time)
+    from the short/long difference, and the long run's wall (its spread is the noise)."""
+    ok = all(a["ok"] and b["ok"] and b["cycles"] > a["cycles"] for a, b in pairs)
+    samples = [{"us_wall": (b["wall"] - a["wall"]) / (b["cycles"] - a["cycles"]) / n_el * 1e6,
+                "us_cpu": (b["cpu"] - a["cpu"]) / (b["cycles"] - a["cycles"]) / n_el * 1e6,
+                "long_wall": b["wall"], "cycles": [a["cycles"], b["cycles"]], "load": load}
+               for (a, b), load in zip(pairs, loads)] if ok else []
+    return _summarise({"code": code, "element": elem, "threads": t, "elements": n_el, "ok": ok,
+                       "samples": samples})
+
+
+def _summarise(row: dict) -> dict:
+    """Median over the row's rounds, and the noise: (max - min) / median of the long runs' wall."""
+    smp = row["samples"]
+    if not (row["ok"] and smp):
+        return row | {"us_wall": None, "us_cpu": None, "noise": None}
+    longs = [x["long_wall"] for x in smp]
+    return row | {"cycles": smp[0]["cycles"], "us_wall": statistics.median(x["us_wall"] for x in smp),
+                  "us_cpu": statistics.median(x["us_cpu"] for x in smp),
+                  "noise": (max(longs) - min(longs)) / statistics.median(longs), "rounds": len(smp)}
+
+
+def measure(rounds: int = 2, sizes=(10_000, 100_000), threads=(1, 2)) -> dict:
     rows = []
-    for n_el in sizes:
-        div = SIZES[n_el]
-        short, long_ = CYCLES[n_el]
-        configs = [(code, elem, t) for t in (1, 2) for pair in PAIRS for code, elem in zip(("ccx", "fdeck"), pair)]
-        samples: dict[tuple, list] = {c: [] for c in configs}
-        with tempfile.TemporaryDirectory() as tmp:
-            work = Path(tmp)
+    with tempfile.TemporaryDirectory() as tmp:
+        work = Path(tmp)
+        try:  # the committed tree, so numba's cache (keyed on the source tree) is not invalidated by others' edits
+            sys.path.insert(0, str(HERE))
+            from forming_cost import snapshot
+
+            src, commit = snapshot(work)
+            SNAPSHOT.update(src=str(src), commit=commit)
+        except (subprocess.CalledProcessError, FileNotFoundError):
+            SNAPSHOT.clear()  # not a git checkout: measure the installed fdeck
+        for n_el in sizes:
+            div = SIZES[n_el]
+            short, long_ = CYCLES[n_el]
+            configs = [(code, elem, t) for t in threads for pair in PAIRS for code, elem in zip(("ccx", "fdeck"), pair)]
+            samples: dict[tuple, list] = {c: [] for c in configs}
+            loads: dict[tuple, list] = {c: [] for c in configs}
             run_fdeck(work, div, "reduced", 3, 1)  # warm numba's cache before anything is timed
+            run_fdeck(work, div, "full", 3, 1)
             for r in range(rounds):
                 for cfg in configs:
                     code, elem, t = cfg
                     scale = FDECK_SCALE[n_el] if code == "fdeck" else 1
                     fn = run_ccx if code == "ccx" else run_fdeck
+                    before = os.getloadavg()[0]
                     a = fn(work, div, elem, short * scale, t)
                     b = fn(work, div, elem, long_ * scale, t)
                     samples[cfg].append((a, b))
+                    loads[cfg].append([before, os.getloadavg()[0]])
                     print(f"round {r} {n_el} el {code:5s} {elem:7s} {t} thr: "
                           f"{1e6 * (b['cpu'] - a['cpu']) / max(b['cycles'] - a['cycles'], 1) / n_el:.3f} us (cpu) "
                           f"{1e6 * (b['wall'] - a['wall']) / max(b['cycles'] - a['cycles'], 1) / n_el:.3f} us (wall)"
-                          f" cycles {a['cycles']}/{b['cycles']} ok {a['ok'] and b['ok']}", flush=True)
-        for (code, elem, t), pairs in samples.items():
-            ok = all(a["ok"] and b["ok"] and b["cycles"] > a["cycles"] for a, b in pairs)
-            per = {k: [(b[k] - a[k]) / (b["cycles"] - a["cycles"]) / n_el * 1e6 for a, b in pairs] for k in
-                   ("wall", "cpu")} if ok else {"wall": [], "cpu": []}
-            longs = [b["wall"] for _, b in pairs]
-            rows.append({"code": code, "element": elem, "threads": t, "elements": n_el, "ok": ok,
-                         "cycles": [pairs[0][0]["cycles"], pairs[0][1]["cycles"]],
-                         "us_wall": statistics.median(per["wall"]) if ok else None,
-                         "us_cpu": statistics.median(per["cpu"]) if ok else None,
-                         "noise": (max(longs) - min(longs)) / statistics.median(longs)})
+                          f" cycles {a['cycles']}/{b['cycles']} ok {a['ok'] and b['ok']} load {loads[cfg][-1]}",
+                          flush=True)
+            rows += [_row(code, elem, t, n_el, pairs, loads[(code, elem, t)])
+                     for (code, elem, t), pairs in samples.items()]
     ccx = subprocess.run(["ccx", "-v"], capture_output=True, text=True).stdout.strip().splitlines()
     return {"machine": {"cpu_count": os.cpu_count(), "platform": platform.platform(),
                         "load_average_at_end": os.getloadavg()},
             "ccx": next(("CalculiX " + line.split("Version")[-1].strip() for line in ccx if "Version" in line),
-                        "CalculiX (version unknown)"), "rounds": rounds, "rows": rows}
+                        "CalculiX (version unknown)"), "rounds": rounds, "commit": SNAPSHOT.get("commit"),
+            "rows": rows}
+
+
+def merge(old: dict, new: dict, add: bool) -> dict:
+    """Rows of configurations not measured now are kept from `old`; with `add`, rounds of the same configuration
+    and commit are pooled (the old rows' samples first)."""
+    keys = {(r["code"], r["element"], r["threads"], r["elements"]) for r in new["rows"]}
+    kept = [r if "rounds" in r else r | {"rounds": old.get("rounds")} for r in old.get("rows", [])
+            if (r["code"], r["element"], r["threads"], r["elements"]) not in keys]
+    rows = []
+    for r in new["rows"]:
+        prev = next((o for o in old.get("rows", []) if (o["code"], o["element"], o["threads"], o["elements"]) ==
+                     (r["code"], r["element"], r["threads"], r["elements"])), None)
+        if add and prev and prev.get("samples") and prev.get("commit") == new["commit"] and r["ok"] and prev["ok"]:
+            r = _summarise(r | {"samples": prev["samples"] + r["samples"]})
+        rows.append(r | {"commit": new["commit"]})
+    return new | {"rows": sorted(kept + rows, key=lambda r: r["elements"])}
 
 
 def report(result: dict) -> str:
     """Markdown: per size and thread count, CalculiX's element beside fdeck's, cost per element-cycle and ratio."""
     by = {(r["code"], r["element"], r["threads"], r["elements"]): r for r in result["rows"]}
-    lines = [f"Measured with {result['ccx']}, {result['rounds']} interleaved rounds, on "
+    lines = [f"Measured with {result['ccx']}, interleaved rounds (per row), on "
              f"{result['machine']['cpu_count']} cores ({result['machine']['platform']}).", "",
              "| elements | threads | CalculiX element | µs/el-cycle (wall) | fdeck | µs/el-cycle (wall) | ratio (wall) | "
-             "ratio (processor time) | noise (ccx / fdeck) |", "|---|---|---|---|---|---|---|---|---|"]
+             "ratio (processor time) | noise (ccx / fdeck) | rounds | load (1-min) |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
     for n_el in sorted({r["elements"] for r in result["rows"]}):
         for t in (1, 2):
             for peer, ours in PAIRS:
@@ -191,8 +256,19 @@ def report(result: dict) -> str:
                     continue
                 lines.append(f"| {n_el:,} | {t} | {peer} | {a['us_wall']:.2f} | {ours} | {b['us_wall']:.3f} | "
                              f"{a['us_wall'] / b['us_wall']:.1f}× | {a['us_cpu'] / b['us_cpu']:.1f}× | "
-                             f"{100 * a['noise']:.0f} % / {100 * b['noise']:.0f} % |")
+                             f"{100 * a['noise']:.0f} % / {100 * b['noise']:.0f} % | {_rounds(a)} | "
+                             f"{_loads(a, b)} |")
     return "\n".join(lines)
+
+
+def _rounds(row: dict) -> str:
+    return str(row.get("rounds") or len(row.get("samples", [])) or "–")
+
+
+def _loads(*rows) -> str:
+    """Range of the 1-minute load average over the rows' rounds ('–' for rows measured before it was recorded)."""
+    vals = [v for r in rows for x in r.get("samples", []) for v in x["load"]]
+    return f"{min(vals):.1f}–{max(vals):.1f}" if vals else "–"
 
 
 def main(argv=None) -> int:
@@ -202,6 +278,10 @@ def main(argv=None) -> int:
     ap.add_argument("--report", action="store_true")
     ap.add_argument("--rounds", type=int, default=2)
     ap.add_argument("--quick", action="store_true", help="10 000 elements only")
+    ap.add_argument("--sizes", nargs="*", type=int, choices=sorted(SIZES), default=None,
+                    help="element counts to measure (default both); rows of the others are kept")
+    ap.add_argument("--add", action="store_true", help="pool these rounds with those in peers.json")
+    ap.add_argument("--threads", nargs="*", type=int, choices=(1, 2), default=(1, 2))
     args = ap.parse_args(argv)
     path = HERE / "peers.json"
     if args.report:
@@ -210,7 +290,9 @@ def main(argv=None) -> int:
     if shutil.which("ccx") is None:
         print("ccx is not on PATH (Debian: apt install calculix-ccx): nothing to compare; no file written")
         return 0
-    result = measure(args.rounds, (10_000,) if args.quick else (10_000, 100_000))
+    sizes = tuple(args.sizes) if args.sizes else (10_000,) if args.quick else (10_000, 100_000)
+    old = json.loads(path.read_text()) if path.exists() else {}
+    result = merge(old, measure(args.rounds, sizes, tuple(args.threads)), args.add)
     path.write_text(json.dumps(result, indent=1) + "\n")
     print(report(result))
     return 0
