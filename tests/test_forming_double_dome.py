@@ -1,5 +1,6 @@
 """Double-dome forming decks (decks/forming/double_dome_*.yaml): every deck validated, and the coarse 0/90 deck run
-through the CLI (module fixture, one run of about 61 CPU-seconds on one core, default tier), its history and
+through the CLI (module fixture, one run of 62 708 cycles: 107 CPU-seconds on one core measured at load average 11
+on 2 cores, about 80 at the 780 cycles per CPU-second of a quieter machine; default tier), its history and
 frames checked against independent references: the energy conservation law, Newton's law on the force-driven
 blank holder, contact kinematics (the punch's initial gap), the die geometry (draw-in) and the warp's tensile
 stiffness (formed length along the symmetry line).
@@ -49,16 +50,16 @@ def test_decks_validate():
 
 
 def test_coarse_run_conserves_energy(run):
-    """Requirement: the coarse 0/90 deck completes with its energy_balance check passing (exit 0, or 3 with only
-    the quasi-static check failing, see the next test), and from the history columns, independent of the checks'
-    code: the conservation law kinetic + internal (which holds the contact energy) + damping + friction
-    dissipation - external work - work of every tool on the blank (punch, die, holder) stays below 1 % of the
-    largest energy, and matches the solver's own error column to 1e-6 of that scale (the CSV's rounding)."""
+    """Requirement: the coarse 0/90 deck completes with every check passing (exit 0), and from the history
+    columns, independent of the checks' code: the conservation law kinetic + internal (which holds the contact
+    energy) + damping + friction dissipation - external work - work of every tool on the blank (punch, die,
+    holder) stays below 1 % of the largest energy, and matches the solver's own error column to 1e-6 of that
+    scale (the CSV's rounding)."""
     r, h, out = run
     summary = json.loads((out / "summary.json").read_text())
     assert summary["status"] == "completed", r.stdout[-2000:] + r.stderr[-2000:]
     failed = [c["name"] for c in summary["checks"] if not c["passed"]]
-    assert failed in ([], ["quasi_static"]), failed
+    assert failed == [] and r.returncode == 0, (failed, r.stdout[-2000:])
     tools = [k for k in h if k.startswith("tool_work_")]
     assert sorted(tools) == ["tool_work_die", "tool_work_holder", "tool_work_punch"]
     bal = (h["kinetic_energy"] + h["internal_energy"] + h["damping_energy"] + h["friction_dissipation"]
@@ -68,12 +69,10 @@ def test_coarse_run_conserves_energy(run):
     assert np.abs(bal - h["energy_balance_error"]).max() / scale < 1e-6
 
 
-@pytest.mark.xfail(strict=True, reason="measured on a fresh numba cache: kinetic/internal 0.096 after the first "
-                   "quarter (bursts as the flange draws in under the holder); 0.049 was measured on a stale cache "
-                   "that held older compiled code of another module (issue 8 stays open)")
 def test_coarse_run_is_quasi_static(run):
     """Requirement: kinetic / internal energy of the blank stays below 5 % after the first quarter of the run (the
-    published quasi-static criterion, MODELS 6.4), from the history columns."""
+    published quasi-static criterion, MODELS 6.4), from the history columns (measured 0.040 with the 800 N holder,
+    0.096 with the 100 N first chosen: deck header)."""
     _, h, _ = run
     late = h["time"] >= 0.25 * h["time"][-1]
     ratio = h["kinetic_energy"][late] / np.maximum(h["internal_energy"][late], 1e-300)
