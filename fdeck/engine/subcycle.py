@@ -45,7 +45,6 @@ import time
 
 import numpy as np
 
-from fdeck.compile.orientation import ElementOrientation
 from fdeck.jit import njit
 
 # -- levels -------------------------------------------------------------------------------------------------------
@@ -90,7 +89,8 @@ def subset_recipe(build, name, section, X, conn, ids, kind, params, orient, rho,
     formulation's own hook exactly as ``compile.problem.build_groups`` builds the whole section."""
 
     def make(sel: np.ndarray, level: int):
-        o = ElementOrientation(orient.reference[sel], orient.warp_angle[sel], orient.normal)
+        # the orientation's own class (compile.orientation, which the engine does not import: one direction)
+        o = type(orient)(orient.reference[sel], orient.warp_angle[sel], orient.normal)
         g = build(f"{name}/level{level}", section, X, conn[sel], ids[sel], kind, np.array(params[sel]), o,
                   rho[sel], ctype)
         g.element_index, g.section_index = idx[sel], section_index
