@@ -18,13 +18,18 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 
 from fdeck.compile.errors import CompileError
 from fdeck.engine.ledger import DISSIPATED, STORED, Term
-from fdeck.jit import njit, njit_parallel, prange
-from fdeck.physics.tensor import det3
+from fdeck.jit import FLAGS, njit_parallel, prange
 from fdeck.registry import FormulationKind, register_formulation
+
+_inline = numba.njit(inline="always", **FLAGS)
+"""fdeck's flags plus numba-level inlining for the per-element helpers of the kernels below. Called as functions
+from a ``prange`` body, every array they take (and every view such as ``F[e, q]``) costs an atomic reference-count
+increment and decrement per call on a counter both threads share; inlined, numba prunes them (docs/kernels.md)."""
 
 # Reference node signs (xi, eta, zeta) in VTK order.
 NODE_SIGNS = np.array(
@@ -83,7 +88,7 @@ def prepare(X: np.ndarray, conn: np.ndarray) -> dict:
                 gamma=np.ascontiguousarray(gamma), L0=L0, detJ_min=detJ_min)
 
 
-@njit
+@_inline
 def _deformation_gradients(x, conn, dN, F, J, e):
     """F[e, q] = sum_a x_a (x) dN[e, q, a] and J[e, q] = det F for one element; node coordinates read once."""
     n_qp = dN.shape[1]
@@ -106,10 +111,18 @@ def _deformation_gradients(x, conn, dN, F, J, e):
             F[e, q, 2, 1] += x2 * d1
             F[e, q, 2, 2] += x2 * d2
     for q in range(n_qp):
-        J[e, q] = det3(F[e, q])
+        J[e, q] = _det_at(F, e, q)
 
 
-@njit
+@_inline
+def _det_at(F, e, q):
+    """det F[e, q] (F (n_el, n_qp, 3, 3)), indexed in place: a view F[e, q] would be reference-counted."""
+    return (F[e, q, 0, 0] * (F[e, q, 1, 1] * F[e, q, 2, 2] - F[e, q, 1, 2] * F[e, q, 2, 1])
+            - F[e, q, 0, 1] * (F[e, q, 1, 0] * F[e, q, 2, 2] - F[e, q, 1, 2] * F[e, q, 2, 0])
+            + F[e, q, 0, 2] * (F[e, q, 1, 0] * F[e, q, 2, 1] - F[e, q, 1, 1] * F[e, q, 2, 0]))
+
+
+@_inline
 def _nodal_forces(P, dN, w, fe, e):
     """fe[e, a] = sum_q w_q P_q . dN_qa for one element."""
     for a in range(8):
@@ -185,12 +198,11 @@ def forces_fbar(F, J, Jbar, ratio, Pbar, dN, w, Peff, p, fe):
         for q in range(n_qp):
             a = ratio[e, q]
             c = (pavg / Jbar[e] * J[e, q] - p[e, q]) / J[e, q]  # c F^-T = (pavg J / Jbar - p) cof(F) / J
-            Fq = F[e, q]
             for i in range(3):
                 i1, i2 = (i + 1) % 3, (i + 2) % 3
                 for j in range(3):
                     j1, j2 = (j + 1) % 3, (j + 2) % 3
-                    cof = Fq[i1, j1] * Fq[i2, j2] - Fq[i1, j2] * Fq[i2, j1]
+                    cof = F[e, q, i1, j1] * F[e, q, i2, j2] - F[e, q, i1, j2] * F[e, q, i2, j1]
                     Peff[e, q, i, j] = a * Pbar[e, q, i, j] + c * cof
         _nodal_forces(Peff, dN, w, fe, e)
 

@@ -265,13 +265,14 @@ def _row(P, r, b1, b2, b3, frame):
         P[r, col] = b1 * frame[0, col] + b2 * frame[1, col] + b3 * frame[2, col]
 
 
-@njit
+@_inline
 def point(F, frame, params, state, P):
     """First Piola-Kirchhoff stress into P (3, 3) [MPa]; returns (psi [MPa], m1, m2, m3) with m_i the wave-modulus
     bound [MPa] along the reference fibre direction f_i (see ``_modulus``).
 
     F (3, 3) deformation gradient, frame (3, 3) rows f1, f2, f3 (reference unit vectors), params (PARAMS.size,).
-    Scalars only: no allocation per point.
+    Scalars only: no allocation per point. Inlined at numba level into ``evaluate`` so that the array views passed
+    to it carry no atomic reference counting per point (docs/kernels.md).
     """
     a1, a2, a3, g, q, J, iD = _kinematics(F, frame)
     e1, e2, c, s, t1, t2 = _invariants(g, q, J, iD)
@@ -365,13 +366,22 @@ def _modulus(g, q, J, iD, s, t1, t2, h, d):
     return H11 + H12 + H13 + second, H22 + H12 + H23 + second, H33 + H13 + H23 + second
 
 
+@njit
+def _element(F, frame, params, state, P, psi, modulus, e):
+    """The points of element e (arrays as in ``evaluate``), ``point`` inlined. A serial function of its own: inlined
+    straight into the ``prange`` body of ``evaluate``, ``point`` trips numba's parfor array analysis (numba 0.68:
+    "Dimension mismatch" on its tuple unpacking). Called once per element, its seven array arguments cost seven
+    reference-count pairs per element instead of five per point."""
+    for q in range(F.shape[1]):
+        psi[e, q], modulus[e, q, 0], modulus[e, q, 1], modulus[e, q, 2] = point(
+            F[e, q], frame[e], params[e], state[e, q], P[e, q])
+
+
 @njit_parallel
 def evaluate(F, frame, params, state, P, psi, modulus):
     """Array kernel; shapes in ``fdeck.registry.MaterialKind``."""
     for e in prange(F.shape[0]):
-        for q in range(F.shape[1]):
-            psi[e, q], modulus[e, q, 0], modulus[e, q, 1], modulus[e, q, 2] = point(
-                F[e, q], frame[e], params[e], state[e, q], P[e, q])
+        _element(F, frame, params, state, P, psi, modulus, e)
 
 
 # ----------------------------------------------------------------------------------------------------------------
