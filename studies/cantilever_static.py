@@ -160,7 +160,9 @@ def table() -> str:
     prev = None
     for r in rows:
         same = prev is not None and all(prev[k] == r[k] for k in ("direction", "length", "ratio", "form", "nz"))
-        w = f"{r['tip_deflection']:.2f}" if r["converged"] else f"not converged (lambda {r['load_factor']:.2f})"
+        w = f"{r['tip_deflection']:.2f}" if r["converged"] else (
+            f"not converged (continuation stopped at ratio {r['continuation'][-1]:.3g})" if r.get("continuation")
+            else f"not converged (lambda {r['load_factor']:.2f})")
         ch = (f"{100 * (r['tip_deflection'] / prev['tip_deflection'] - 1):+.1f} %"
               if same and r["converged"] and prev["converged"] else "")
         res = f"{r['residual']:.1e}" if r.get("residual") is not None and r["converged"] else ""
