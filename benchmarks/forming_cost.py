@@ -9,7 +9,8 @@ cycle counts are given: `fdeck info`'s (from the rest step) and the duration ove
 (the step follows the current tangent and contact, so the two differ; the larger is the honest bound). The first
 W seconds of a forming run are its start (pre-tension, the tool's approach): contact is sparse then, so the
 contact share and the wall per cycle of the rest of the run may be larger. Everything extrapolated is labelled so.
-Peak resident memory comes from /usr/bin/time -v where it exists.
+Peak resident memory comes from /usr/bin/time -v where it exists. `--max-wall` counts from before the first frame
+(fdeck's own limit), so a large shell deck needs a minute or more of it to cycle at all.
 
 The code measured is a snapshot of the commit checked out (`git archive HEAD` into <temp>/fdeck_bench_<commit>/,
 reused by later invocations, put first on PYTHONPATH; its commit is recorded): fdeck keys numba's cache on the
@@ -212,7 +213,11 @@ def report(result: dict) -> str:
     for r in result["rows"]:
         run, ex = r["run"], r.get("extrapolated")
         if not run.get("ok"):
-            lines.append(f"| {r['deck']} | {r['elements']} | failed (exit {run.get('exit_code')}) |||||||")
+            why = (f"no cycle within --max-wall {r['max_wall']:g} s (it includes the first frame)"
+                   if run.get("cycles") == 0 else f"failed (exit {run.get('exit_code')})")
+            rss = f"{run['peak_rss_mib']:.0f} MiB" if run.get("peak_rss_mib") else "–"
+            lines.append(f"| {r['deck']} | {r['elements']:,} | {why} | – | – | – | {rss} | {r['expected_cycles']:,} | "
+                         f"– | {run['load_before'].split()[0]}–{run['load_after'].split()[0]} |")
             continue
         rss = f"{run['peak_rss_mib']:.0f} MiB" if run.get("peak_rss_mib") else "–"
         lines.append(

@@ -256,9 +256,16 @@ def report(result: dict) -> str:
                     continue
                 lines.append(f"| {n_el:,} | {t} | {peer} | {a['us_wall']:.2f} | {ours} | {b['us_wall']:.3f} | "
                              f"{a['us_wall'] / b['us_wall']:.1f}× | {a['us_cpu'] / b['us_cpu']:.1f}× | "
-                             f"{100 * a['noise']:.0f} % / {100 * b['noise']:.0f} % | {_rounds(a)} | "
+                             f"{_noise(a, b)} | {_rounds(a)} | "
                              f"{_loads(a, b)} |")
     return "\n".join(lines)
+
+
+def _noise(a: dict, b: dict) -> str:
+    """The two rows' spread of the long runs, or '–' when a row has one round (no spread to state)."""
+    if any(r.get("rounds") == 1 for r in (a, b)):
+        return "– (one round)"
+    return f"{100 * a['noise']:.0f} % / {100 * b['noise']:.0f} %"
 
 
 def _rounds(row: dict) -> str:
