@@ -1,6 +1,6 @@
 """Tetrahedron punch decks (decks/forming/tetrahedron_*.yaml, MODELS.md 6.4): validation, tool files, and the
-coarse deck's run (nightly: about 180 CPU-seconds, see the deck's header) checked against the punch geometry, the
-energy the punch and the holder put in and the fibres' inextensibility."""
+coarse deck's run (nightly: about 230 CPU-seconds on one thread, see the deck's header) checked against the punch
+geometry, the energy the punch and the holder put in and the fibres' inextensibility."""
 
 from __future__ import annotations
 
@@ -45,7 +45,7 @@ def test_decks_validate_and_info_names_tools_and_pairs():
         assert r.returncode == 0, r.stdout + r.stderr
         assert "tool punch: mesh 'tools/tetrahedron_punch_whole.stl', displacement 65 mm" in r.stdout
         assert "tool die: mesh 'tools/tetrahedron_die.stl', fixed" in r.stdout
-        assert "tool holder: mesh 'tools/tetrahedron_holder.stl', force 200 N" in r.stdout
+        assert "tool holder: mesh 'tools/tetrahedron_holder.stl', force 800 N" in r.stdout
         nx, ny, nz = _block(path)["divisions"]
         face = (nx + 1) * (ny + 1)
         for tool in ("punch", "die", "holder"):
@@ -118,8 +118,8 @@ def _punch_profile(n=4001):
 def test_coarse_run_energy_put_in_by_the_punch(coarse_run):
     """Requirement: the work of the punch and of the holder integrated from the history's force and displacement
     columns (trapezoid rule on the deck's 400 rows, independent of the ledger's own terms) equals kinetic + strain +
-    contact energy + friction dissipation to 1 % of the work (the deck's energy_balance limit; measured 3.3e-3 on
-    400 rows: the sampled force chatters between rows), and the energy_balance check passes."""
+    contact energy + friction dissipation to 1 % of the work (the deck's energy_balance limit; measured 4.0e-3 on
+    400 rows with the 800 N holder: the sampled force chatters between rows), and the energy_balance check passes."""
     r, h, _, s = coarse_run
 
     def trapezoid(f, u):
@@ -179,12 +179,10 @@ def test_coarse_run_blank_wraps_the_punch(coarse_run):
 
 
 @pytest.mark.nightly
-@pytest.mark.xfail(strict=True, reason="measured 0.0517 (limit 0.05) with the holder and the designed stroke: one "
-                   "burst at 17 mm of travel, elsewhere below 0.026; a 1.35x slower punch there moved the burst "
-                   "(0.0502 -> 0.0517), it did not remove it (deck header)")
 def test_coarse_run_is_quasi_static(coarse_run):
     """Requirement (MODELS 6.4): kinetic / internal energy of the blank below 5 % after the first quarter of the
-    run, recomputed from history.csv, and the run exits 0."""
+    run, recomputed from history.csv, and the run exits 0 (measured 0.0408 with the 800 N holder, one run; 0.0517
+    with 200 N, which is why the holder is 800 N: deck header)."""
     r, h, _, _ = coarse_run
     late = h["time"] >= 0.25 * h["time"][-1]
     ratio = (h["kinetic_energy"][late] / h["internal_energy"][late]).max()
