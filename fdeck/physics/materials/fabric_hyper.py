@@ -371,8 +371,8 @@ def _modulus(g, q, J, iD, s, t1, t2, h, d):
 def _element(F, frame, params, state, P, psi, modulus, e):
     """The points of element e (arrays as in ``evaluate``). A serial function of its own: inlined
     straight into the ``prange`` body of ``evaluate``, ``point`` trips numba's parfor array analysis (numba 0.68:
-    "Dimension mismatch" on its tuple unpacking). Called once per element, its seven array arguments cost seven
-    reference-count pairs per element instead of five per point."""
+    "Dimension mismatch" on its tuple unpacking). Keeps the ``prange`` body free of per-point array views; the
+    calls to ``point`` pay their reference counting here, on one thread's own element."""
     for q in range(F.shape[1]):
         psi[e, q], modulus[e, q, 0], modulus[e, q, 1], modulus[e, q, 2] = point(
             F[e, q], frame[e], params[e], state[e, q], P[e, q])
