@@ -62,6 +62,19 @@ def energy_magnitude(row) -> float:
     return max(abs(row[i]) for i in _SCALE_COLUMNS)
 
 
+def guard_energy(stop: float, scale: float, previous: float, row, error: float, t: float) -> tuple[float, float]:
+    """The opt-in energy guard (``checks.energy_balance.stop_above`` = ``stop``) at a history row: returns the
+    running energy scale (largest ``energy_magnitude`` so far) and this row's balance error over it; raises
+    ``RunStopped`` when two rows in a row are above ``stop``, the second higher (an instability grows faster than
+    the energies, while round-off at the first tiny energies of a run shrinks relative to them)."""
+    scale = max(scale, energy_magnitude(row))
+    ratio = error / scale if scale > 0.0 else 0.0
+    if stop < previous < ratio:
+        raise RunStopped(f"energy created: balance error {error:.4g} mJ is {ratio:.3g} of the largest energy "
+                         f"{scale:.4g} mJ, above checks.energy_balance.stop_above {stop:g}", t)
+    return scale, ratio
+
+
 def first_bad_node(*arrays: np.ndarray) -> int | None:
     """1-based index of the first node with a non-finite value in any of ``arrays`` (n_node, 3), or None."""
     bad = np.zeros(len(arrays[0]), dtype=bool)
@@ -365,16 +378,8 @@ def _run(problem, sink: Sink, should_stop, resume) -> Result:
                         raise RunStopped("non-finite energy (NaN or overflow in forces)", t,
                                          node=first_bad_node(x, v, f_int, f_ext, f_damp))
                     if energy_stop is not None:
-                        energy_scale = max(energy_scale, energy_magnitude(row))
-                        ratio = error / energy_scale if energy_scale > 0.0 else 0.0
-                        # two rows in a row above the limit, the second higher: an instability grows faster than
-                        # the energies, while round-off at the first tiny energies of a run shrinks relative to them
-                        created = energy_stop < energy_prev < ratio
-                        energy_prev = ratio
-                        if created:
-                            raise RunStopped(f"energy created: balance error {error:.4g} mJ is "
-                                             f"{error / energy_scale:.3g} of the largest energy {energy_scale:.4g} mJ,"
-                                             f" above checks.energy_balance.stop_above {energy_stop:g}", t)
+                        energy_scale, energy_prev = guard_energy(energy_stop, energy_scale, energy_prev, row, error,
+                                                                 t)
                     for nodes in problem.reactions.values():
                         row += reaction[nodes].sum(axis=0).tolist()
                         if rot is not None:

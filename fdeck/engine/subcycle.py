@@ -196,7 +196,7 @@ def kinetic(m, v, v_old, first):
 
 def run(problem, sink, should_stop, resume, sub):
     """``engine.solver.run`` for a problem with subcycling (``sub``: the ``effects.subcycling`` effect)."""
-    from fdeck.engine.solver import (Result, RunStopped, _Timer, energy_magnitude, history_columns, ledger,
+    from fdeck.engine.solver import (Result, RunStopped, _Timer, guard_energy, history_columns, ledger,
                                      step_setter)
 
     res = Result(columns=history_columns(problem))
@@ -311,14 +311,8 @@ def run(problem, sink, should_stop, resume, sub):
                             if not all(math.isfinite(r) for r in row[:len(book.columns)]):
                                 raise RunStopped("non-finite energy (NaN or overflow in forces)", t)
                             if energy_stop is not None:
-                                energy_scale = max(energy_scale, energy_magnitude(row))
-                                ratio = error / energy_scale if energy_scale > 0.0 else 0.0
-                                created = energy_stop < energy_prev < ratio
-                                energy_prev = ratio
-                                if created:
-                                    raise RunStopped(f"energy created: balance error {error:.4g} mJ is {ratio:.3g} "
-                                                     f"of the largest energy {energy_scale:.4g} mJ, above "
-                                                     f"checks.energy_balance.stop_above {energy_stop:g}", t)
+                                energy_scale, energy_prev = guard_energy(energy_stop, energy_scale, energy_prev,
+                                                                         row, error, t)
                             for nodes in problem.reactions.values():
                                 row += reaction[nodes].sum(axis=0).tolist()
                             for meas in problem.measures:
