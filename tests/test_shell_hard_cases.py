@@ -28,6 +28,7 @@ def finite(h) -> bool:
     return all(np.isfinite(v).all() for v in h.values())
 
 
+@pytest.mark.nightly  # about 55 CPU-s (CI budget)
 def test_bias_sample_sheared_past_the_locking_angle(tmp_path):
     """Requirement: an sm bias sample of the T300 preset (W = 10, H = 20 mm, fibre-aligned 2.5 mm diamonds) pulled
     4 mm in 5 ms, so that the pin-jointed net would reach 74 deg and the centre passes the 45 deg locking angle,
