@@ -358,6 +358,7 @@ print(numba.get_num_threads(), hashlib.sha256(r.final_positions.tobytes()).hexdi
 
 
 @pytest.mark.unit
+@pytest.mark.nightly  # about 23 CPU-s (CI budget); the hexahedra's thread determinism stays in test_determinism.py
 def test_results_identical_on_one_and_two_threads():
     """Requirement: with fibre bending, final positions are bitwise equal with NUMBA_NUM_THREADS=1 and 2."""
     assert len(digests_on_one_and_two_threads(DETERMINISM)) == 1

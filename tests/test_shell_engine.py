@@ -38,7 +38,7 @@ print(numba.get_num_threads(), h)
 """
 
 
-@pytest.mark.parametrize("form", ["sm", "ts"])
+@pytest.mark.parametrize("form", ["sm", pytest.param("ts", marks=pytest.mark.nightly)])  # ts nightly: CI budget
 def test_shell_results_identical_on_one_and_two_threads(form):
     """Requirement: final positions and directors of a shell run (400 elements, 60 cycles, damping) are bitwise
     equal with NUMBA_NUM_THREADS=1 and 2 (per-element buffers and the fixed-order gather, for moments too)."""
