@@ -75,6 +75,14 @@ def guard_energy(stop: float, scale: float, previous: float, row, error: float, 
     return scale, ratio
 
 
+def past(times: np.ndarray, i: int, t: float, T: float) -> int:
+    """The first index from i on whose time lies after t (to 1e-12 of the run's duration T): the next frame or
+    history sample still due once the ones at t are written."""
+    while i < len(times) and times[i] <= t + 1e-12 * T:
+        i += 1
+    return i
+
+
 def first_bad_node(*arrays: np.ndarray) -> int | None:
     """1-based index of the first node with a non-finite value in any of ``arrays`` (n_node, 3), or None."""
     bad = np.zeros(len(arrays[0]), dtype=bool)
@@ -390,8 +398,7 @@ def _run(problem, sink: Sink, should_stop, resume) -> Result:
                     t0 = timer.add("measures", t0)
                     res.history.append(row)
                     sink.history(row)
-                    while next_hist < len(hist_times) and hist_times[next_hist] <= t + 1e-12 * T:
-                        next_hist += 1
+                    next_hist = past(hist_times, next_hist, t, T)
                 for e in movers:
                     e.advance(t + dt, dt, dt_avg)
                 t += dt
@@ -414,8 +421,7 @@ def _run(problem, sink: Sink, should_stop, resume) -> Result:
                         sink.frame(t, x, v)
                     else:
                         sink.frame(t, x, v, {"director": rot.d})
-                    while next_frame < len(frame_times) and frame_times[next_frame] <= t + 1e-12 * T:
-                        next_frame += 1
+                    next_frame = past(frame_times, next_frame, t, T)
                     t0 = timer.add("output", t0)
                 if sink.checkpoint_due(res.cycles):
                     sink.checkpoint(lambda: state(k), "every")

@@ -196,7 +196,7 @@ def kinetic(m, v, v_old, first):
 
 def run(problem, sink, should_stop, resume, sub):
     """``engine.solver.run`` for a problem with subcycling (``sub``: the ``effects.subcycling`` effect)."""
-    from fdeck.engine.solver import (Result, RunStopped, _Timer, guard_energy, history_columns, ledger,
+    from fdeck.engine.solver import (Result, RunStopped, _Timer, guard_energy, history_columns, ledger, past,
                                      step_setter)
 
     res = Result(columns=history_columns(problem))
@@ -319,8 +319,7 @@ def run(problem, sink, should_stop, resume, sub):
                                 row += meas.evaluate(x, v)
                             res.history.append(row)
                             sink.history(row)
-                            while next_hist < len(hist_times) and hist_times[next_hist] <= t + 1e-12 * T:
-                                next_hist += 1
+                            next_hist = past(hist_times, next_hist, t, T)
                     drift_nodes(x, v, dx, h)
                     t += h
                     res.cycles += 1
@@ -347,8 +346,7 @@ def run(problem, sink, should_stop, resume, sub):
                 res.dt_min, res.dt_max = min(res.dt_min, h), max(res.dt_max, h)
                 if next_frame < len(frame_times) and t >= frame_times[next_frame] - 1e-12 * T:
                     sink.frame(t, x, v)
-                    while next_frame < len(frame_times) and frame_times[next_frame] <= t + 1e-12 * T:
-                        next_frame += 1
+                    next_frame = past(frame_times, next_frame, t, T)
                 now = time.perf_counter()
                 if now - last_progress > 0.5:
                     sink.progress(t, res.cycles, h)
