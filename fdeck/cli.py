@@ -43,23 +43,58 @@ def _compile_problems(exc, path: Path, locs):
 
 
 @app.command()
-def validate(decks: list[Path] = typer.Argument(..., help="Deck files.")):
+def validate(decks: list[Path] = typer.Argument(..., help="Deck files (study and identification files too).")):
     """Check decks (schema, names, mesh sets, element geometry, physically absurd figures: cycles, memory, stable
-    step floor, travel per cycle) and report every problem at once."""
+    step floor, travel per cycle) and report every problem at once; a study or identification file (``fdeck
+    study``/``identify``) is checked as such, with the deck paths it sets."""
     from fdeck.compile.check import check_deck
     from fdeck.deck.errors import DeckError, format_problems
 
     bad = False
     for path in decks:
         try:
-            *_, warnings = check_deck(path)
-            if warnings:
-                _err(format_problems(warnings))
-            typer.echo(f"{path}: ok")
+            kind = _file_kind(path)
+            if kind == "study":
+                from fdeck.study.study import load_study
+
+                load_study(path)
+            elif kind == "ident":
+                from fdeck.study.identify import load_ident
+
+                load_ident(path)
+            else:
+                *_, warnings = check_deck(path)
+                if warnings:
+                    _err(format_problems(warnings))
+            typer.echo(f"{path}: ok" + ("" if kind == "deck" else f" ({kind} file)"))
         except DeckError as exc:
             _err(format_problems(exc.problems))
             bad = True
     raise typer.Exit(2 if bad else 0)
+
+
+def _file_kind(path: Path) -> str:
+    """'study', 'ident' or 'deck': by the schema a file names on its first line (``fdeck schema``), else by its
+    top-level keys (a study or identification file names a `base` deck; an identification file its `parameters`)."""
+    try:
+        with open(path, "rb") as fh:
+            first = fh.readline(4096).decode("utf-8", "replace")
+    except OSError:
+        return "deck"  # check_deck reports the unreadable file, located
+    for kind in ("study", "ident"):
+        if f"{kind}.schema.json" in first:
+            return kind
+    if "deck.schema.json" in first:
+        return "deck"
+    try:
+        from fdeck.deck.loader import load_file
+
+        data, _ = load_file(path)
+    except Exception:  # noqa: BLE001 -- whatever is wrong, check_deck reports it located
+        return "deck"
+    if isinstance(data, dict) and "base" in data:
+        return "ident" if "parameters" in data else "study"
+    return "deck"
 
 
 def _progress_printer(total: float):

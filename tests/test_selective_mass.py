@@ -112,6 +112,36 @@ def test_bending_frequency_kept_and_step_grows_as_asked():
     assert dt_engine <= crit1
 
 
+def test_selective_on_top_of_uniform_scaling():
+    """Requirement: ``selective_target_dt`` adds selective mass ON TOP of a uniform factor (a forming deck keeps its
+    published uniform scaling): the lumped (translational) mass is the uniformly scaled one, the critical step grows
+    from the uniformly scaled one by the factor asked, and the first bending frequency stays within 1 % of the
+    uniformly scaled strip's.
+
+    Same strip, reference and tolerances as above, now with ``factor: 4`` (mass 4x: frequencies / 2) and a target
+    5x the uniformly scaled step. Lumped mass: exactly 4x the physical (1e-12, a product of sums)."""
+    deck = cantilever(False)
+    deck["steps"][0]["mass_scaling"] = {"factor": 4.0}
+    uniform = compile_deck(Deck.model_validate(deck))
+    dt_u = uniform.steps[0].dt_safety * uniform.groups[0].rest_dt(uniform.steps[0].rho[0]).min()
+    deck["steps"][0]["mass_scaling"] = {"factor": 4.0, "selective_target_dt": 5 * dt_u}
+    scaled = compile_deck(Deck.model_validate(deck))
+    n = uniform.n_node
+    assert np.allclose(scaled.steps[0].mass, 4.0 * uniform.physical_mass, rtol=1e-12)
+    assert np.allclose(scaled.steps[0].selective[0], 24.0, rtol=1e-9)  # (5 dt_u / dt_u)^2 - 1
+    eff = selective_effect(scaled)
+    free = eff.solver.free.ravel() > 0
+    Kf = stiffness(uniform, free)
+    M = np.diag(np.repeat(uniform.steps[0].mass, 3)[free])
+    dM = added_mass_matrix(eff, n)[np.ix_(free, free)]
+    w0 = np.sqrt(scipy.linalg.eigh(Kf, M, eigvals_only=True))
+    w1 = np.sqrt(scipy.linalg.eigh(Kf, M + dM, eigvals_only=True))
+    assert w1[0] / w0[0] == pytest.approx(1.0, abs=0.01)
+    assert (2 / w1[-1]) / (2 / w0[-1]) == pytest.approx(5.0, rel=0.03)
+    dt_engine = scaled.steps[0].dt_safety * scaled.groups[0].rest_dt(scaled.steps[0].rho[0]).min()
+    assert dt_engine == pytest.approx(5 * dt_u, rel=1e-9) and dt_engine <= 2 / w1[-1]
+
+
 def free_block(selective: bool = True) -> dict:
     """Free steel block 6 x 2 x 2 mm (6 x 2 x 2 hexahedra), no support: gravity along z and a self-equilibrated pair
     of forces along x on its two end faces; every cycle written to the history (to sum the steps)."""

@@ -107,6 +107,19 @@ def test_bad_study_file_gives_located_errors_and_exit_2(tmp_path):
     assert lines[2].startswith(f"{spec}:{_line(spec, 'variant: fine')}:"), lines[2]
     assert "unknown variant 'fine'" in lines[2], lines[2]
     assert not (tmp_path / "out").exists()
+    v = fdeck("validate", spec)  # validate recognises a study file and reports the same located problems
+    assert v.returncode == 2 and v.stderr.strip().splitlines() == lines, v.stderr
+
+
+def test_validate_checks_the_shipped_study_and_identification_files():
+    """Requirement: `fdeck validate` checks study and identification files as such (their schema, their base deck,
+    the deck paths they set), not as decks: every file in decks/studies/ passes, each named with its kind."""
+    files = sorted((DECKS / "studies").glob("*.yaml"))
+    r = fdeck("validate", *files)
+    assert r.returncode == 0, r.stderr
+    kinds = {Path(ln.split(":")[0]).name: ln for ln in r.stdout.splitlines()}
+    assert "(study file)" in kinds["cantilever_convergence.yaml"] and "(ident file)" in kinds["identify_bar.yaml"]
+    assert kinds["bar.yaml"].endswith(": ok"), kinds
 
 
 def _rows(table):

@@ -19,6 +19,11 @@ class MassScaling(Card):
                             "modes that deform an element, not to its translation (Olovsson, Simonsson & Unosson "
                             "2005), so total mass, momentum and the slow bending modes stay as they are; the "
                             "non-diagonal mass is solved each cycle by conjugate gradients.")
+    selective_target_dt: float | None = Field(
+        None, gt=0, description="Selective mass scaling ON TOP of `factor` or `target_dt` [s]: after the uniform "
+        "scaling (the one a deck was validated with, e.g. the published factor of a forming set-up), elements whose "
+        "step is below this target get added mass on their deformation modes only, so the uniform translational "
+        "inertia stays and the step grows further. Not with `selective`.")
     cg_tolerance: float = Field(1e-4, gt=0, lt=1, description="Selective scaling: the conjugate-gradient solve "
                                 "stops when the residual's norm (weighted by the inverse diagonal) falls below "
                                 "this fraction of the right-hand side's [-].")
@@ -29,7 +34,15 @@ class MassScaling(Card):
     def _one_of(self):
         if (self.factor is None) == (self.target_dt is None):
             raise ValueError("give exactly one of `factor` or `target_dt`")
+        if self.selective and self.selective_target_dt is not None:
+            raise ValueError("`selective: true` makes `factor`/`target_dt` selective; `selective_target_dt` adds "
+                             "selective scaling on top of a uniform one: give one of them")
         return self
+
+    @property
+    def is_selective(self) -> bool:
+        """Whether the step has a non-diagonal added mass (either form)."""
+        return self.selective or self.selective_target_dt is not None
 
 
 register_card(CardEntry("mass_scaling", MassScaling, "effect", "step"))

@@ -35,8 +35,9 @@ class StepPlan:
     start: float = 0.0  # nominal start time of the step [s] (the sum of the earlier steps' durations)
     # selective mass scaling (``engine.selective_mass``): per group (n_el,) factors beta_e of the added mass
     # beta_e (m_e / n)(I - P_e) (P_e: the element's rigid modes), None for a step without; ``rho`` then holds
-    # rho (1 + beta) (the density the element steps see: every deformation mode of the element carries 1 + beta
-    # times its mass) while ``mass`` stays the physical lumped mass; ``added_mass`` is tr(dM) / tr(M)
+    # rho_base (1 + beta) (the density the element steps see: every deformation mode of the element carries 1 + beta
+    # times its mass) while ``mass`` is the lumped mass of rho_base (physical, or uniformly scaled under
+    # ``selective_target_dt``; m_e above is rho_base's); ``added_mass`` is (tr(M) + tr(dM)) / tr(M_physical) - 1
     selective: list[np.ndarray] | None = None
     cg: tuple[float, int] = (1e-4, 200)  # (relative tolerance, iteration cap) of the per-cycle solve
 
@@ -290,21 +291,26 @@ def plan_steps(deck: Deck, groups: list, physical_mass: np.ndarray, effects=()) 
                 dt0 = rest_dt(g, g.rho, effects)  # rest stable step per element
                 rho[i] = g.rho * np.maximum(1.0, (ms.target_dt / (s.dt_safety * dt0)) ** 2)
         selective = None
-        if ms is not None and ms.selective:
+        if ms is not None and ms.is_selective:
             stiff = sorted({e.name for e in effects if e.group is not None and e.rest_dt(e.group.rho) is not None})
             if stiff:  # their stiffness turns whole elements, which the added mass leaves as they are
-                raise CompileError([(("steps", len(plans), "mass_scaling", "selective"), "selective mass scaling "
+                key = "selective" if ms.selective else "selective_target_dt"
+                raise CompileError([(("steps", len(plans), "mass_scaling", key), "selective mass scaling "
                                      "adds no mass to element rotations, which section effects with a stiffness "
                                      f"of their own act on ({', '.join(stiff)}): their step would not grow; use "
                                      "mass scaling without `selective`")])
-            # the same element steps as above, reached by mass on the deformation modes only (closed form: the
-            # element's deformation eigenvalues divide by 1 + beta, see engine.selective_mass)
-            selective = [r / g.rho - 1.0 for r, g in zip(rho, groups)]
-            physical = [g.rho for g in groups]
-            mass = nodal_mass(groups, n_node, physical)
-            inertia = nodal_inertia(groups, n_node, physical) if rotational else None
-            added = sum(float((b * g.mass(g.rho).sum(axis=1)).sum()) * (1.0 - 2.0 / g.conn.shape[1])
-                        for b, g in zip(selective, groups)) / total
+            # the translational (lumped) mass: physical for `selective`, the uniformly scaled one for
+            # `selective_target_dt`; rho then reaches the target element steps by mass on the deformation modes only
+            # (closed form: the element's deformation eigenvalues divide by 1 + beta, see engine.selective_mass)
+            base = [g.rho for g in groups] if ms.selective else rho
+            if ms.selective_target_dt is not None:
+                rho = [b * np.maximum(1.0, (ms.selective_target_dt / (s.dt_safety * rest_dt(g, b, effects))) ** 2)
+                       for g, b in zip(groups, base)]
+            selective = [r / b - 1.0 for r, b in zip(rho, base)]
+            mass = nodal_mass(groups, n_node, base)
+            inertia = nodal_inertia(groups, n_node, base) if rotational else None
+            added = (mass.sum() - total + sum(float((be * g.mass(b).sum(axis=1)).sum()) * (1.0 - 2.0 / g.conn.shape[1])
+                                              for be, g, b in zip(selective, groups, base))) / total
         else:
             mass = nodal_mass(groups, n_node, rho)
             inertia = nodal_inertia(groups, n_node, rho) if rotational else None

@@ -27,8 +27,7 @@ class SelectiveMassEffect(Effect):
 
     def __init__(self, groups: list, X: np.ndarray, selective: list[bool]):
         self.solver = SelectiveMass([g.conn for g in groups], X)
-        self.element_mass = [g.mass(g.rho).sum(axis=1) for g in groups]  # physical (n_el,) [t]
-        self.rest = [g.rest_dt(g.rho) for g in groups]  # physical rest steps, for ``describe``
+        self.groups = groups
         self.selective = selective
         self.plan = None
         self.ke = 0.0
@@ -48,7 +47,9 @@ class SelectiveMassEffect(Effect):
         for c in constraints:
             c.constrain(0.0, 1.0, x.copy(), probe)
         free = np.isnan(probe).astype(float)
-        self.solver.set_step(self.plan.selective, self.element_mass, self.plan.mass, free, self.plan.cg)
+        # element masses of the translational (base) density rho / (1 + beta): physical, or uniformly scaled
+        base = [g.mass(r / (1.0 + b)).sum(axis=1) for g, r, b in zip(self.groups, self.plan.rho, self.plan.selective)]
+        self.solver.set_step(self.plan.selective, base, self.plan.mass, free, self.plan.cg)
 
     def term_values(self) -> tuple[float, ...]:
         s = self.solver
@@ -59,25 +60,27 @@ class SelectiveMassEffect(Effect):
         if plan.selective is None:
             return f"selective mass scaling in steps {steps} (not in the first)"
         beta = np.concatenate(plan.selective)
-        dt0 = min(float(r.min()) for r in self.rest) * plan.dt_safety
-        dt1 = min(float((r * np.sqrt(1.0 + b)).min()) for r, b in zip(self.rest, plan.selective)) * plan.dt_safety
+        dt0 = min(float(g.rest_dt(r / (1.0 + b)).min()) for g, r, b in zip(self.groups, plan.rho, plan.selective))
+        dt1 = min(float(g.rest_dt(r).min()) for g, r in zip(self.groups, plan.rho))
+        dt0, dt1 = dt0 * plan.dt_safety, dt1 * plan.dt_safety
         tol, cap = plan.cg
-        return (f"selective mass scaling (steps {steps}): translational mass unchanged, added mass "
-                f"tr(dM)/tr(M) {100 * plan.added_mass:.3g} % on {int((beta > 0).sum())} of {len(beta)} elements "
+        return (f"selective mass scaling (steps {steps}): translational mass as without it, added mass "
+                f"{100 * plan.added_mass:.3g} % of the physical (uniform and selective) on {int((beta > 0).sum())} "
+                f"of {len(beta)} elements "
                 f"(beta up to {beta.max():.3g}), rest step {dt0:.4g} -> {dt1:.4g} s (x{dt1 / dt0:.3g}); "
                 f"conjugate gradients per cycle, tolerance {tol:g}, cap {cap} iterations")
 
 
 def build(cards: list, ctx) -> SelectiveMassEffect | None:
     """The effect, or None when no step is selective. cards: each step's ``mass_scaling`` card or None."""
-    selective = [c is not None and c.selective for c in cards]
+    selective = [c is not None and c.is_selective for c in cards]
     if not any(selective):
         return None
     problems = []
     for i, on in enumerate(selective):
         if not on:
             continue
-        path = ("steps", i, "mass_scaling", "selective")
+        path = ("steps", i, "mass_scaling", "selective" if cards[i].selective else "selective_target_dt")
         if ctx.rotations is not None:
             problems.append((path, "selective mass scaling is for hexahedra; this model has shell nodes with "
                              "rotations (use `factor` or `target_dt` without `selective`)"))

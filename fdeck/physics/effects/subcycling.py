@@ -91,7 +91,7 @@ def build(cards: list, ctx) -> SubcyclingEffect | None:
         if not g.solid:
             refuse(f"group {g.name} holds {g.cell_type} elements; subcycling runs hexahedra only")
     for i, s in enumerate(deck.steps):
-        if s.mass_scaling is not None and s.mass_scaling.selective:
+        if s.mass_scaling is not None and s.mass_scaling.is_selective:
             refuse(f"steps[{i}] uses selective mass scaling")
         if s.damping is not None:
             refuse(f"steps[{i}] has damping")
