@@ -405,7 +405,8 @@ def _run(problem, sink: Sink, should_stop, resume) -> Result:
                 dt_prev = dt
                 res.cycles += 1
                 step_cycles += 1
-                res.dt_min, res.dt_max = min(res.dt_min, dt), max(res.dt_max, dt)
+                # the stable step, not the last one shortened to land on the step's end
+                res.dt_min, res.dt_max = min(res.dt_min, dt_next), max(res.dt_max, dt_next)
                 t0 = timer.add("integrator", t0)
                 forces(t, x, v)
                 t0 = time.perf_counter()
