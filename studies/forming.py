@@ -2,11 +2,15 @@
 
     python studies/forming.py render RESULT_DIR OUT.png [--field shear_angle] [--view top|side] [--title T]
     python studies/forming.py force RESULT_DIR... OUT.png [--tool punch]   # punch force against stroke
+    python studies/forming.py paths PATH_NAME RESULT_DIR... OUT.png      # shear angle along a path, runs compared
 
 `render` reads the last blank frame of a run's `.pvd` (the blank is part 0; tools are other parts), draws every
 element as the polygon of its nodes projected on the view plane (their 2-D convex hull), farthest first, so the
 visible face of a hexahedral stack or of a shell wins, and colours it by the cell field (the fabric laws' shear
 angle in degrees by default). `force` plots the history's `tool_<tool>_force_z` against the tool's travel.
+`paths` plots the final shear angle along the path `PATH_NAME` (``output.paths``) of several runs (two meshes, say)
+and prints, for each run after the first, the largest difference from the first at the first run's sample points
+(linear interpolation in arc length; each run's angle is its elements' own, constant per element).
 """
 
 from __future__ import annotations
@@ -113,6 +117,37 @@ def force(result_dirs, png, tool: str = "punch") -> None:
     plt.close(fig)
 
 
+def read_path(result_dir, name: str) -> tuple[np.ndarray, np.ndarray]:
+    """(arc length [mm], shear angle [deg]) of ``path_<name>.csv`` in a result folder."""
+    data = np.genfromtxt(Path(result_dir) / f"path_{name}.csv", delimiter=",", names=True)
+    return data["arc_length"], data["shear_angle"]
+
+
+def paths(name: str, result_dirs, png) -> list[float]:
+    """Plot the shear angle along path ``name`` for each run; returns max |angle - first run's| per other run
+    [deg], at the first run's samples."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    s0, a0 = read_path(result_dirs[0], name)
+    fig, ax = plt.subplots(figsize=(6, 4))
+    ax.plot(s0, a0, label=Path(result_dirs[0]).name)
+    out = []
+    for r in result_dirs[1:]:
+        s, a = read_path(r, name)
+        out.append(float(np.abs(np.interp(s0, s, a) - a0).max()))
+        ax.plot(s, a, label=f"{Path(r).name} (max diff {out[-1]:.2f} deg)")
+    ax.set_xlabel(f"arc length along {name} [mm]")
+    ax.set_ylabel("shear angle [deg]")
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(png, dpi=130)
+    plt.close(fig)
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = ap.add_subparsers(dest="cmd", required=True)
@@ -125,11 +160,17 @@ def main() -> None:
     f = sub.add_parser("force")
     f.add_argument("paths", nargs="+", help="result folders, then the PNG")
     f.add_argument("--tool", default="punch")
+    p = sub.add_parser("paths")
+    p.add_argument("name", help="path name (output.paths[].name)")
+    p.add_argument("paths", nargs="+", help="result folders (the first is the reference), then the PNG")
     a = ap.parse_args()
     if a.cmd == "render":
         print(render(a.result_dir, a.png, a.field, a.view, a.title))
-    else:
+    elif a.cmd == "force":
         force(a.paths[:-1], a.paths[-1], a.tool)
+    else:
+        for r, d in zip(a.paths[1:-1], paths(a.name, a.paths[:-1], a.paths[-1])):
+            print(f"{r}: largest difference from {a.paths[0]} along {a.name}: {d:.2f} deg")
 
 
 if __name__ == "__main__":
