@@ -258,14 +258,18 @@ def info(deck: Path = typer.Argument(..., help="Deck file.")):
             implies = f", implies section formulation {entry.formulation}" if entry.formulation else ""
             typer.echo(f"  material {name}: {card.type} = {entry.kind} with preset {card.preset}{implies}")
     cycles, mem = 0, 0
-    for plan, step in zip(p.steps, d.steps):
+    for k, (plan, step) in enumerate(zip(p.steps, d.steps)):
         alpha = step.damping.mass_proportional if step.damping else 0.0
         dts = []
         for g, rho in zip(p.groups, plan.rho):
             dts.append(plan.dt_safety * float(np.min(rest_dt(g, rho, p.effects))))
-        dt = min(dts)
+        dt, by = min(dts), ""
+        for e in p.effects:  # effects' own bounds at the step's start (contact springs, a tool's travel, ...)
+            e.begin_step(k, plan)
+            if plan.dt_safety * e.stable_dt() < dt:
+                dt, by = plan.dt_safety * e.stable_dt(), f" (set by {e.name})"
         cycles += int(np.ceil(plan.duration / dt))
-        typer.echo(f"  step {plan.name}: rest stable dt {dt:.4g} s, ~{int(np.ceil(plan.duration / dt))} cycles, "
+        typer.echo(f"  step {plan.name}: rest stable dt {dt:.4g} s{by}, ~{int(np.ceil(plan.duration / dt))} cycles, "
                    f"added mass {100 * plan.added_mass:.3g} %, damping alpha {alpha:g} 1/s"
                    + (f", max_cycles {plan.max_cycles}" if plan.max_cycles else ""))
     for g in p.groups:
