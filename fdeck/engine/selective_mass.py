@@ -117,20 +117,65 @@ def dot(a, b, w, part):
 
 
 @njit_parallel
-def _axpy(y, alpha, x, free):
-    """y += alpha x on the free dofs."""
-    for i in prange(y.shape[0]):
-        for j in range(3):
-            y[i, j] += alpha * x[i, j] * free[i, j]
-
-
-@njit_parallel
-def _precondition(z, res, dinv, p, beta):
-    """z = D^-1 res; p = z + beta p."""
+def _direction(z, res, dinv, p, beta, q, m):
+    """z = D^-1 res; p = z + beta p; q = m p (the lumped part of (M + dM) p): one pass over the nodes."""
     for i in prange(z.shape[0]):
         for j in range(3):
             z[i, j] = dinv[i, j] * res[i, j]
             p[i, j] = z[i, j] + beta * p[i, j]
+            q[i, j] = m[i] * p[i, j]
+
+
+@njit_parallel
+def _gather_dot(ye, ptr, slots, q, p, free, part):
+    """q += the element products ye (n_el, n, 3) gathered per node in a fixed order (``engine.gather``), and
+    returns p . q on the free dofs, summed per chunk of CHUNK nodes and then serially (the same operations, in the
+    same order, as ``gather_add`` followed by ``dot``: one pass)."""
+    k = ye.shape[1]
+    n = q.shape[0]
+    n_chunk = part.shape[0]
+    for c in prange(n_chunk):
+        s = 0.0
+        for i in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
+            s0 = 0.0
+            s1 = 0.0
+            s2 = 0.0
+            for t in range(ptr[i], ptr[i + 1]):
+                e = slots[t] // k
+                a = slots[t] - e * k
+                s0 += ye[e, a, 0]
+                s1 += ye[e, a, 1]
+                s2 += ye[e, a, 2]
+            q[i, 0] += s0
+            q[i, 1] += s1
+            q[i, 2] += s2
+            for j in range(3):
+                s += p[i, j] * q[i, j] * free[i, j]
+        part[c] = s
+    total = 0.0
+    for c in range(n_chunk):
+        total += part[c]
+    return total
+
+
+@njit_parallel
+def _step(a, res, p, q, free, alpha, dinv, part):
+    """a += alpha p, res -= alpha q on the free dofs, and returns res . D^-1 res by chunks (as ``_axpy`` twice and
+    ``dot``, in one pass)."""
+    n = a.shape[0]
+    n_chunk = part.shape[0]
+    for c in prange(n_chunk):
+        s = 0.0
+        for i in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
+            for j in range(3):
+                a[i, j] += alpha * p[i, j] * free[i, j]
+                res[i, j] += -alpha * q[i, j] * free[i, j]
+                s += res[i, j] * res[i, j] * dinv[i, j]
+        part[c] = s
+    total = 0.0
+    for c in range(n_chunk):
+        total += part[c]
+    return total
 
 
 @njit_parallel
@@ -185,13 +230,11 @@ def solve(a, r, m, conn, dX, Jinv, c, ptr, slots, free, dinv, tol, max_it, ye, q
     rz = dot(res, res, dinv, part)
     it = 0
     beta = 0.0
-    while rz > tol * tol * ref and it < max_it:
-        _precondition(z, res, dinv, p, beta)
-        apply(p, m, conn, dX, Jinv, c, ptr, slots, ye, q)
-        alpha = rz / dot(p, q, free, part)
-        _axpy(a, alpha, p, free)
-        _axpy(res, -alpha, q, free)
-        rz_new = dot(res, res, dinv, part)
+    while rz > tol * tol * ref and it < max_it:  # four passes per iteration (fused kernels above)
+        _direction(z, res, dinv, p, beta, q, m)
+        element_added(p, conn, dX, Jinv, c, ye)
+        alpha = rz / _gather_dot(ye, ptr, slots, q, p, free, part)
+        rz_new = _step(a, res, p, q, free, alpha, dinv, part)
         beta = rz_new / rz
         rz = rz_new
         it += 1
