@@ -30,15 +30,51 @@ def _deck():
     return yaml.safe_load(COARSE.read_text())
 
 
-@pytest.fixture(scope="module")
-def run(tmp_path_factory):
-    out = tmp_path_factory.mktemp("dd090")
+def _run(deck, out):
     env = dict(os.environ, NUMBA_NUM_THREADS="1")
-    r = subprocess.run([sys.executable, "-m", "fdeck.cli", "run", str(COARSE), "-o", str(out)], cwd=ROOT, env=env,
+    r = subprocess.run([sys.executable, "-m", "fdeck.cli", "run", str(deck), "-o", str(out)], cwd=ROOT, env=env,
                        capture_output=True, text=True, timeout=600)
     rows = list(csv.DictReader(open(out / "history.csv")))
     h = {k: np.array([float(row[k]) for row in rows]) for k in rows[0]}
     return r, h, out
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    return _run(COARSE, tmp_path_factory.mktemp("dd090"))
+
+
+@pytest.fixture(scope="module")
+def run45(tmp_path_factory):
+    return _run(COARSE.with_name("double_dome_45_coarse.yaml"), tmp_path_factory.mktemp("dd45"))
+
+
+def _passes_and_balances(run):
+    """The run completed with every check passing (exit 0), and from the history columns, independent of the
+    checks' code: kinetic + internal (which holds the contact energy) + damping + friction dissipation - external
+    work - work of every tool on the blank (punch, die, holder) stays below 1 % of the largest energy, and matches
+    the solver's own error column to 1e-6 of that scale (the CSV's rounding)."""
+    r, h, out = run
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "completed", r.stdout[-2000:] + r.stderr[-2000:]
+    failed = [c["name"] for c in summary["checks"] if not c["passed"]]
+    assert failed == [] and r.returncode == 0, (failed, r.stdout[-2000:])
+    tools = [k for k in h if k.startswith("tool_work_")]
+    assert sorted(tools) == ["tool_work_die", "tool_work_holder", "tool_work_punch"]
+    bal = (h["kinetic_energy"] + h["internal_energy"] + h["damping_energy"] + h["friction_dissipation"]
+           - h["external_work"] - sum(h[k] for k in tools))
+    scale = max(np.abs(h["kinetic_energy"]).max(), np.abs(h["internal_energy"]).max())
+    assert np.abs(bal).max() / scale < 0.01
+    assert np.abs(bal - h["energy_balance_error"]).max() / scale < 1e-6
+
+
+def _quasi_static(run):
+    """kinetic / internal energy of the blank after the first quarter of the run (the published quasi-static
+    criterion, MODELS 6.4), from the history columns; the added mass's kinetic energy (selective mass scaling) is
+    part of the kinetic energy."""
+    _, h, _ = run
+    late = h["time"] >= 0.25 * h["time"][-1]
+    return (h["kinetic_energy"][late] / np.maximum(h["internal_energy"][late], 1e-300)).max()
 
 
 @pytest.mark.parametrize("size", ["coarse", pytest.param("full", marks=pytest.mark.nightly)])
@@ -56,33 +92,26 @@ def test_decks_validate(size):
 
 
 def test_coarse_run_conserves_energy(run):
-    """Requirement: the coarse 0/90 deck completes with every check passing (exit 0), and from the history
-    columns, independent of the checks' code: the conservation law kinetic + internal (which holds the contact
-    energy) + damping + friction dissipation - external work - work of every tool on the blank (punch, die,
-    holder) stays below 1 % of the largest energy, and matches the solver's own error column to 1e-6 of that
-    scale (the CSV's rounding)."""
-    r, h, out = run
-    summary = json.loads((out / "summary.json").read_text())
-    assert summary["status"] == "completed", r.stdout[-2000:] + r.stderr[-2000:]
-    failed = [c["name"] for c in summary["checks"] if not c["passed"]]
-    assert failed == [] and r.returncode == 0, (failed, r.stdout[-2000:])
-    tools = [k for k in h if k.startswith("tool_work_")]
-    assert sorted(tools) == ["tool_work_die", "tool_work_holder", "tool_work_punch"]
-    bal = (h["kinetic_energy"] + h["internal_energy"] + h["damping_energy"] + h["friction_dissipation"]
-           - h["external_work"] - sum(h[k] for k in tools))
-    scale = max(np.abs(h["kinetic_energy"]).max(), np.abs(h["internal_energy"]).max())
-    assert np.abs(bal).max() / scale < 0.01
-    assert np.abs(bal - h["energy_balance_error"]).max() / scale < 1e-6
+    """Requirement: the coarse 0/90 deck completes with every check passing and balances its energy (see
+    ``_passes_and_balances``)."""
+    _passes_and_balances(run)
 
 
 def test_coarse_run_is_quasi_static(run):
-    """Requirement: kinetic / internal energy of the blank stays below 5 % after the first quarter of the run (the
-    published quasi-static criterion, MODELS 6.4), from the history columns (measured 0.040 with the 800 N holder,
-    0.096 with the 100 N first chosen: deck header)."""
-    _, h, _ = run
-    late = h["time"] >= 0.25 * h["time"][-1]
-    ratio = h["kinetic_energy"][late] / np.maximum(h["internal_energy"][late], 1e-300)
-    assert ratio.max() < 0.05, ratio.max()
+    """Requirement: kinetic / internal energy of the blank stays below 5 % after the first quarter of the run
+    (measured 0.040 with the 800 N holder, 0.096 with the 100 N first chosen; 0.043 with the selective mass now in
+    the deck: deck header)."""
+    assert _quasi_static(run) < 0.05
+
+
+def test_coarse_45_run_completes_quasi_statically_and_balances(run45):
+    """Requirement: the coarse +-45 deck (the one-layer blank that used to invert an element 2.4 mm before closure
+    with a 100 N holder) completes the full stroke with every check passing, its energy balanced as the 0/90 deck's
+    and kinetic / internal below 5 % (measured 0.023 with the selective mass, 0.019 without: deck header)."""
+    _passes_and_balances(run45)
+    _, h, _ = run45
+    assert -h["tool_punch_displacement_z"][-1] >= 0.99 * _deck()["tools"]["punch"]["motion"]["value"]
+    assert _quasi_static(run45) < 0.05
 
 
 def test_punch_force_zero_before_contact_and_pushing_after(run):
