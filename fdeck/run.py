@@ -42,8 +42,9 @@ def _sha(data: bytes) -> str:
 def deck_digests(deck, problem) -> dict:
     """What ties a checkpoint to a deck: SHA-256 of the deck's canonical content without its steps, output settings
     (but with the reactions and measures, which make the history columns), checks and title, and of the mesh
-    arrays; one SHA-256 per step; the fdeck version; the run's duration when a built-in amplitude spans it (then
-    adding a step changes the loads of the steps before)."""
+    arrays; one SHA-256 per step; the fdeck version and the digest of its source files (the build: the engine's
+    state layout that a checkpoint saves is the code's, not the version number's); the run's duration when a built-in
+    amplitude spans it (then adding a step changes the loads of the steps before)."""
     from fdeck import __version__
 
     data = deck.model_dump(mode="json")
@@ -62,7 +63,9 @@ def deck_digests(deck, problem) -> dict:
             return any((("amplitude" in k) and v in ("ramp", "smooth")) or relative(v) for k, v in node.items())
         return isinstance(node, list) and any(relative(v) for v in node)
 
-    return {"version": __version__, "base": h.hexdigest(),
+    from fdeck.jit import _source_digest
+
+    return {"version": __version__, "build": _source_digest(), "base": h.hexdigest(),
             "steps": [_sha(json.dumps(st, sort_keys=True).encode()) for st in steps],
             "duration": problem.duration if relative(data) else None}
 
@@ -72,6 +75,10 @@ def check_compatible(saved: dict, now: dict, where: str) -> None:
     if saved["version"] != now["version"]:
         raise RestartError(f"{where} was written by fdeck {saved['version']}, this is fdeck {now['version']}: "
                            "a restart needs the same version")
+    if saved.get("build") != now["build"]:
+        raise RestartError(f"{where} was written by another build of fdeck {now['version']} (source digest "
+                           f"{saved.get('build') or 'not recorded'}, this one {now['build']}): the state it saves is "
+                           "laid out by the code that wrote it; a restart needs the same source files")
     if saved["base"] != now["base"]:
         raise RestartError(f"{where} belongs to another deck or mesh (materials, sections, mesh, boundary, loads, "
                            "tools, contact, reactions or measures differ)")

@@ -225,7 +225,7 @@ def test_added_step_continues_a_finished_run(tmp_path):
 
 
 def test_refuses_other_deck_version_and_changed_steps(tmp_path):
-    """Requirement: a checkpoint of another deck (a changed material), of another fdeck version, or whose steps
+    """Requirement: a checkpoint of another deck (a changed material), of another fdeck version or build, or whose steps
     were changed (not only appended), or one whose 'smooth' amplitude would be stretched by an added step, is
     refused with a message naming the reason, and the CLI exits 2."""
     from typer.testing import CliRunner
@@ -251,6 +251,12 @@ def test_refuses_other_deck_version_and_changed_steps(tmp_path):
     payload["digests"]["version"] = "0.0.0-other"
     write_checkpoint(out, 10**9 - 1, payload, keep=100)
     with pytest.raises(RestartError, match="fdeck 0.0.0-other"):
+        run(path, out, restart=True)
+    # another build of the same version (source files edited since the checkpoint: its state layout may differ)
+    payload["digests"]["version"] = read_checkpoint(last)["digests"]["version"]
+    payload["digests"]["build"] = "0123456789abcdef"
+    write_checkpoint(out, 10**9 - 1, payload, keep=100)
+    with pytest.raises(RestartError, match="another build"):
         run(path, out, restart=True)
     # a smooth amplitude spans the whole run: an added step would change the loads already applied
     smooth = HEX.replace("value: -800.0, amplitude: constant", "value: -1.0, amplitude: smooth")
