@@ -30,6 +30,11 @@ on its lumped mass m; the effect bounds the step by sqrt(m / k) = 1 / omega, hal
 that the node stays stable with the element stiffness added (up to three times the penalty's) and the penalty's
 ringing, which the ledger sees at the dt^2 omega^2 / 8 level of central differences, stays small.
 
+Broad phase against a triangulated tool: the tool's grid (``tools.triangulated``) answers a node's query with one
+cell look-up; a node found out of reach at its last query (its distance to the nearest triangle minus its offset and
+the law's clearance, its slack) is not queried again until its travel relative to the tool since then exceeds that
+slack, so the nodes away from a tool cost a distance check per cycle, not a query.
+
 Tunnelling: a shell node that crosses the tool surface in one cycle would be pushed out on the wrong face, and a
 node that travels beyond a triangulated tool's search distance is no longer seen. The effect therefore also bounds
 the step by half that distance over the tool's largest speed in the step (sub-stepping the whole model rather than
@@ -119,13 +124,30 @@ def query_analytic(x, nodes, kind, shape, u, d, nrm):
 
 
 @njit_parallel
-def query_mesh(x, nodes, P, T, face_n, edge_n, vert_n, rim_e, rim_v, lo, h, dims, start, items, r, u, d, nrm):
-    """The same against a triangulated tool (``tools.triangulated``; d = r, normal 0 for a node farther than r)."""
+def query_mesh(x, nodes, P, T, face_n, edge_n, vert_n, rim_e, rim_v, lo, h, dims, start, items, r, u, d, nrm,
+               reach, xq, uq, slack):
+    """The same against a triangulated tool (``tools.triangulated``; d = r, normal 0 for a node farther than r),
+    skipping the nodes that cannot have come within reach since their last query (a travel bound).
+
+    reach (k,) [mm]: the distance from the tool within which a node can feel a force (its offset plus the law's
+    clearance); xq (k, 3), uq (k, 3): node position and tool translation at each node's last query; slack (k,) [mm]:
+    its distance to the nearest triangle then (negative inside the tool), less its reach. A node whose travel relative to the tool since then,
+    |x - xq| + |u - uq|, is below its slack is still out of reach: it is reported far (d = r, normal 0, no force,
+    exactly what a query gives beyond r) without a query. All updated in place; one node per iteration."""
     for i in prange(nodes.shape[0]):
         a = nodes[i]
-        d[i], nrm[i, 0], nrm[i, 1], nrm[i, 2] = triangulated.distance(
-            P, T, face_n, edge_n, vert_n, rim_e, rim_v, lo, h, dims, start, items, r, x[a, 0] - u[0], x[a, 1] - u[1],
-            x[a, 2] - u[2])
+        moved = math.sqrt((x[a, 0] - xq[i, 0]) ** 2 + (x[a, 1] - xq[i, 1]) ** 2 + (x[a, 2] - xq[i, 2]) ** 2)
+        moved += math.sqrt((u[0] - uq[i, 0]) ** 2 + (u[1] - uq[i, 1]) ** 2 + (u[2] - uq[i, 2]) ** 2)
+        if moved < slack[i]:
+            d[i], nrm[i, 0], nrm[i, 1], nrm[i, 2] = r, 0.0, 0.0, 0.0
+        else:
+            dd, n0, n1, n2, near = triangulated.closest(P, T, face_n, edge_n, vert_n, rim_e, rim_v, lo, h, dims,
+                                                        start, items, r, x[a, 0] - u[0], x[a, 1] - u[1],
+                                                        x[a, 2] - u[2])
+            d[i], nrm[i, 0], nrm[i, 1], nrm[i, 2] = dd, n0, n1, n2
+            xq[i, 0], xq[i, 1], xq[i, 2] = x[a, 0], x[a, 1], x[a, 2]
+            uq[i, 0], uq[i, 1], uq[i, 2] = u[0], u[1], u[2]
+            slack[i] = min(dd, near) - reach[i]  # dd < 0 inside the tool: no slack
 
 
 @njit_parallel
@@ -213,6 +235,9 @@ class RigidContact(Effect):
         self.mu_d = (friction.dynamic if friction.dynamic is not None else friction.static) if friction else 0.0
         self.search = search
         self.grid = None if tool.kind != MESH else triangulated.build(*tool.mesh, search)
+        # travel bound of the triangulated query (``query_mesh``): zero slack queries every node at the first call
+        self.reach = offset + (law[2] if law[0] == EXPONENTIAL else 0.0)
+        self.xq, self.uq, self.slack = np.zeros((k, 3)), np.zeros((k, 3)), np.zeros(k)
         self.u_force = np.array(tool.u)  # tool translation at the last call
         self.x_prev = np.ascontiguousarray(X[nodes])
         self.ft, self.status = np.zeros((k, 3)), np.zeros(k, np.int64)
@@ -272,7 +297,8 @@ class RigidContact(Effect):
         if self.grid is None:
             query_analytic(x, self.nodes, self.tool.shape_kind, self.tool.params, u, self.dist, self.nrm)
         else:
-            query_mesh(x, self.nodes, *self.grid.arrays(), u, self.dist, self.nrm)
+            query_mesh(x, self.nodes, *self.grid.arrays(), u, self.dist, self.nrm, self.reach, self.xq, self.uq,
+                       self.slack)
 
     def add_force(self, t, x, v, f):
         tool = self.tool

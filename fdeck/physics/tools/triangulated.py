@@ -219,11 +219,19 @@ def distance(P, T, face_n, edge_n, vert_n, rim_e, rim_v, lo, h, dims, start, ite
     (r, 0, 0, 0) when no triangle lies within the search radius r, or when the point lies behind an open sheet's rim
     and beyond it (closest to a rim edge or vertex, on the back side, off the rim's normal line): such a point has
     gone round the sheet's edge, not through its face, and pushing it back through the face would create energy."""
+    d, n0, n1, n2, _ = closest(P, T, face_n, edge_n, vert_n, rim_e, rim_v, lo, h, dims, start, items, r, x0, x1, x2)
+    return d, n0, n1, n2
+
+
+@njit
+def closest(P, T, face_n, edge_n, vert_n, rim_e, rim_v, lo, h, dims, start, items, r, x0, x1, x2):
+    """``distance`` and, fifth, the unsigned distance to the nearest triangle [mm] (r when none lies within r, and
+    the true one for a point that went round a rim): how far the point must move before it can touch the tool."""
     i = int(math.floor((x0 - lo[0]) / h))
     j = int(math.floor((x1 - lo[1]) / h))
     k = int(math.floor((x2 - lo[2]) / h))
     if i < 0 or j < 0 or k < 0 or i >= dims[0] or j >= dims[1] or k >= dims[2]:
-        return r, 0.0, 0.0, 0.0
+        return r, 0.0, 0.0, 0.0, r
     c = (i * dims[1] + j) * dims[2] + k
     best, tbest, rbest = r * r, -1, 0
     q0 = q1 = q2 = 0.0
@@ -237,7 +245,7 @@ def distance(P, T, face_n, edge_n, vert_n, rim_e, rim_v, lo, h, dims, start, ite
             best, tbest, rbest = dd, t, region
             q0, q1, q2 = y0, y1, y2
     if tbest < 0:
-        return r, 0.0, 0.0, 0.0
+        return r, 0.0, 0.0, 0.0, r
     if rbest == FACE:
         p0, p1, p2 = face_n[tbest, 0], face_n[tbest, 1], face_n[tbest, 2]
         rim = False
@@ -252,12 +260,12 @@ def distance(P, T, face_n, edge_n, vert_n, rim_e, rim_v, lo, h, dims, start, ite
     dist = math.sqrt(best)
     r0, r1, r2 = x0 - q0, x1 - q1, x2 - q2
     if dist <= 1e-12 * h:  # on the surface: the pseudonormal is the normal
-        return 0.0, p0, p1, p2
+        return 0.0, p0, p1, p2, 0.0
     sign = 1.0 if r0 * p0 + r1 * p1 + r2 * p2 >= 0.0 else -1.0
     if rim and sign < 0.0:
         # behind a rim: "far" only if the point is also beyond the rim within the sheet's plane (it went round the
         # edge); straight behind it (a node on a symmetry plane under a quarter tool's rim) it has penetrated
         rn = r0 * p0 + r1 * p1 + r2 * p2
         if (r0 - rn * p0) ** 2 + (r1 - rn * p1) ** 2 + (r2 - rn * p2) ** 2 > 1e-12 * dist * dist:
-            return r, 0.0, 0.0, 0.0
-    return sign * dist, sign * r0 / dist, sign * r1 / dist, sign * r2 / dist
+            return r, 0.0, 0.0, 0.0, dist
+    return sign * dist, sign * r0 / dist, sign * r1 / dist, sign * r2 / dist, dist
