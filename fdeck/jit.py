@@ -49,4 +49,9 @@ njit = numba.njit(**FLAGS)
 njit_parallel = numba.njit(parallel=True, **FLAGS)
 """Decorator for kernels whose outer loop is ``numba.prange`` over entities (elements or nodes)."""
 
+njit_inline = numba.njit(inline="always", **FLAGS)
+"""Decorator for small helpers called per element or node from a ``prange`` body: called as functions, every array
+they take (and every view such as ``F[e, q]``) costs an atomic reference-count increment and decrement per call on
+a counter all threads share; inlined at numba level, numba prunes them (docs/kernels.md)."""
+
 prange = numba.prange

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from fdeck.jit import njit_parallel, prange
+from fdeck.jit import njit_inline, njit_parallel, prange
 
 
 def node_slots(conn: np.ndarray, n_node: int) -> tuple[np.ndarray, np.ndarray]:
@@ -18,20 +18,28 @@ def node_slots(conn: np.ndarray, n_node: int) -> tuple[np.ndarray, np.ndarray]:
     return ptr, order.astype(np.int64)
 
 
+@njit_inline
+def node_sum(fe, ptr, slots, n):
+    """(s0, s1, s2): the sum of fe (n_el, k, 3) over the slots of node n, in slot order (inlined into the loops that
+    call it, so no array reference counting per node)."""
+    k = fe.shape[1]
+    s0 = 0.0
+    s1 = 0.0
+    s2 = 0.0
+    for i in range(ptr[n], ptr[n + 1]):
+        e = slots[i] // k
+        a = slots[i] - e * k
+        s0 += fe[e, a, 0]
+        s1 += fe[e, a, 1]
+        s2 += fe[e, a, 2]
+    return s0, s1, s2
+
+
 @njit_parallel
 def gather_add(fe, ptr, slots, f):
     """f (n_node, 3) += sum of fe (n_el, k, 3) over the slots of each node, in a fixed order."""
-    k = fe.shape[1]
     for n in prange(f.shape[0]):
-        s0 = 0.0
-        s1 = 0.0
-        s2 = 0.0
-        for i in range(ptr[n], ptr[n + 1]):
-            e = slots[i] // k
-            a = slots[i] - e * k
-            s0 += fe[e, a, 0]
-            s1 += fe[e, a, 1]
-            s2 += fe[e, a, 2]
+        s0, s1, s2 = node_sum(fe, ptr, slots, n)
         f[n, 0] += s0
         f[n, 1] += s1
         f[n, 2] += s2

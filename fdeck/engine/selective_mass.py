@@ -40,7 +40,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from fdeck.engine.gather import gather_add, node_slots
+from fdeck.engine.gather import gather_add, node_slots, node_sum
 from fdeck.jit import njit, njit_parallel, prange
 
 CHUNK = 256  # nodes per partial sum of a dot product (fixed, so the sums do not depend on the thread count)
@@ -131,21 +131,12 @@ def _gather_dot(ye, ptr, slots, q, p, free, part):
     """q += the element products ye (n_el, n, 3) gathered per node in a fixed order (``engine.gather``), and
     returns p . q on the free dofs, summed per chunk of CHUNK nodes and then serially (the same operations, in the
     same order, as ``gather_add`` followed by ``dot``: one pass)."""
-    k = ye.shape[1]
     n = q.shape[0]
     n_chunk = part.shape[0]
     for c in prange(n_chunk):
         s = 0.0
         for i in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
-            s0 = 0.0
-            s1 = 0.0
-            s2 = 0.0
-            for t in range(ptr[i], ptr[i + 1]):
-                e = slots[t] // k
-                a = slots[t] - e * k
-                s0 += ye[e, a, 0]
-                s1 += ye[e, a, 1]
-                s2 += ye[e, a, 2]
+            s0, s1, s2 = node_sum(ye, ptr, slots, i)
             q[i, 0] += s0
             q[i, 1] += s1
             q[i, 2] += s2

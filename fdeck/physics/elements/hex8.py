@@ -18,18 +18,14 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
 from fdeck.compile.errors import CompileError
 from fdeck.engine.ledger import DISSIPATED, STORED, Term
-from fdeck.jit import FLAGS, njit_parallel, prange
+from fdeck.jit import njit_inline, njit_parallel, prange
 from fdeck.registry import FormulationKind, register_formulation
 
-_inline = numba.njit(inline="always", **FLAGS)
-"""fdeck's flags plus numba-level inlining for the per-element helpers of the kernels below. Called as functions
-from a ``prange`` body, every array they take (and every view such as ``F[e, q]``) costs an atomic reference-count
-increment and decrement per call on a counter both threads share; inlined, numba prunes them (docs/kernels.md)."""
+_inline = njit_inline  # per-element helpers of the kernels below (see fdeck.jit.njit_inline)
 
 # Reference node signs (xi, eta, zeta) in VTK order.
 NODE_SIGNS = np.array(
