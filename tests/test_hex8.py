@@ -10,7 +10,7 @@ import pytest
 import fdeck.physics  # noqa: F401  (registers plug-ins)
 from fdeck.compile.mesh import block
 from fdeck.physics.elements.hex8 import Hex8Group
-from fdeck.registry import CARDS, MATERIALS
+from fdeck.registry import CARDS, FORMULATIONS, MATERIALS
 
 from helpers import central_gradient, stored_energy, term
 
@@ -20,13 +20,28 @@ MATS = ["linear_elastic", "neo_hookean"]
 
 
 def make_group(form, mat="neo_hookean", X=None, conn=None, nu=0.3):
+    """The group the registry builds for formulation ``form`` (its own class: `ans` is not a ``Hex8Group`` mode;
+    constructing ``Hex8Group`` with its name would silently run full integration)."""
     kind = MATERIALS[mat]
     card = CARDS["material"][mat].card(type=mat, density=1e-9, youngs_modulus=1000.0, poisson_ratio=nu)
     p = kind.pack(card)
     n = len(conn)
-    return Hex8Group("g", form, X, conn, np.arange(1, n + 1), kind, np.broadcast_to(p, (n, len(p))),
-                     np.broadcast_to(np.eye(3), (n, 3, 3)).copy(), np.full(n, 1e-9),
-                     SimpleNamespace(type="stiffness", coefficient=0.1))
+    section = SimpleNamespace(formulation=form, hourglass=SimpleNamespace(type="stiffness", coefficient=0.1))
+    orientation = SimpleNamespace(frames=lambda: np.broadcast_to(np.eye(3), (n, 3, 3)).copy())
+    return FORMULATIONS[form].build("g", section, X, conn, np.arange(1, n + 1), kind, np.broadcast_to(p, (n, len(p))),
+                                    orientation, np.full(n, 1e-9), "hexahedron")
+
+
+def test_make_group_builds_each_formulation_s_own_group():
+    """Requirement: the suites below test each formulation's own element, not ``Hex8Group`` under another name:
+    on a random non-affine motion `ans` forces differ from `full`'s by more than 5 % of the largest force (measured
+    20 %, the removed parasitic shear; the same class would give exactly 0)."""
+    X, conn = distorted_patch()
+    x = X + 0.05 * np.random.default_rng(0).normal(size=X.shape)
+    f_full = internal_forces(make_group("full", X=X, conn=conn), x)
+    f_ans = internal_forces(make_group("ans", X=X, conn=conn), x)
+    assert type(make_group("ans", X=X, conn=conn)) is not Hex8Group
+    assert np.abs(f_ans - f_full).max() > 0.05 * np.abs(f_full).max()
 
 
 def distorted_patch(seed=0):
@@ -45,12 +60,34 @@ def internal_forces(g, x, v=None):
     return f
 
 
-@pytest.mark.parametrize("form", FORMS)
-@pytest.mark.parametrize("mat", MATS)
-def test_patch_test_linear_field_gives_exact_constant_stress(form, mat):
-    """Requirement: on a distorted mesh a homogeneous deformation x = A X gives the exact stress in every
-    element (1e-8 relative) and zero force on the interior node (equilibrium)."""
-    X, conn = distorted_patch()
+def parallelepiped_patch():
+    """2x2x2 block under an affine map (sheared and stretched): every element a parallelepiped."""
+    m = block((0, 0, 0), (2.0, 1.5, 1.0), (2, 2, 2))
+    B = np.array([[1.0, 0.3, 0.1], [0.0, 1.0, 0.2], [0.1, 0.0, 0.8]])
+    return m.X @ B.T, m.cells["hexahedron"]
+
+
+ANS_DISTORTED = pytest.mark.xfail(strict=True, reason=(
+    "measured 2026-11-26: the assumed shears are exact for affine motions (stress to 1e-15) but the interior node of "
+    "the distorted patch is not in equilibrium: ans 3.8e-2 of the largest force (both laws). Our reading: the "
+    "natural shear stresses J0^-1 S J0^-T of a uniform stress differ between the Gauss points of a non-parallelepiped "
+    "element, so their work on the sampled shears of a non-affine variation does not vanish; on parallelepipeds it "
+    "does (the parallelepiped cases)"))
+
+
+def patch_cases():
+    for mesh in ("distorted", "parallelepiped"):
+        for mat in MATS:
+            for form in FORMS:
+                marks = ANS_DISTORTED if mesh == "distorted" and form.startswith("ans") else ()
+                yield pytest.param(form, mat, mesh, marks=marks, id=f"{mesh}-{mat}-{form}")
+
+
+@pytest.mark.parametrize("form,mat,mesh", list(patch_cases()))
+def test_patch_test_linear_field_gives_exact_constant_stress(form, mat, mesh):
+    """Requirement: on a distorted mesh (and on one of parallelepipeds) a homogeneous deformation x = A X gives the
+    exact stress in every element (1e-8 relative) and zero force on the interior node (equilibrium)."""
+    X, conn = distorted_patch() if mesh == "distorted" else parallelepiped_patch()
     g = make_group(form, mat, X, conn)
     A = np.array([[1.02, 0.01, -0.005], [0.004, 0.99, 0.008], [0.0, 0.006, 1.015]])
     x = X @ A.T + np.array([1.0, -2.0, 0.5])
