@@ -41,16 +41,12 @@ def fabric(E: float, G: float, ratio: float):
 
 
 def make_group(form, X, conn, kind, p):
-    """An element group of formulation ``form`` with material (kind, p) and the global frame."""
+    """The group the registry builds for formulation ``form``, with material (kind, p) and the global frame."""
     n = len(conn)
-    from fdeck.physics.elements.hex8 import Hex8Group
-    from fdeck.physics.elements.hex8_ans import Hex8AnsGroup
-
-    cls = Hex8AnsGroup if form == "ans" else Hex8Group
-    assert form in FORMULATIONS
-    return cls("g", form, X, conn, np.arange(1, n + 1), kind, np.broadcast_to(p, (n, len(p))),
-               np.broadcast_to(np.eye(3), (n, 3, 3)).copy(), np.full(n, 1e-9),
-               SimpleNamespace(type="stiffness", coefficient=0.05))
+    section = SimpleNamespace(formulation=form, hourglass=SimpleNamespace(type="stiffness", coefficient=0.05))
+    orientation = SimpleNamespace(frames=lambda: np.broadcast_to(np.eye(3), (n, 3, 3)).copy())
+    return FORMULATIONS[form].build("g", section, X, conn, np.arange(1, n + 1), kind, np.broadcast_to(p, (n, len(p))),
+                                    orientation, np.full(n, 1e-9), "hexahedron")
 
 
 class Section:

@@ -27,7 +27,7 @@ print(numba.get_num_threads(), hashlib.sha256(r.final_positions.tobytes()).hexdi
 """
 
 
-@pytest.mark.parametrize("form", ["fbar", "reduced"])
+@pytest.mark.parametrize("form", ["fbar", "reduced", "ans", "ans_tbar", "ans_fbar"])
 def test_results_identical_on_one_and_two_threads(form):
     """Requirement: final positions are bitwise equal with NUMBA_NUM_THREADS=1 and 2."""
     assert len(digests_on_one_and_two_threads(SCRIPT, form)) == 1

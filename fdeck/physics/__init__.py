@@ -7,6 +7,6 @@ from fdeck.physics.effects import boundary, bulk_viscosity, contact, damping, fi
 from fdeck.physics.measures import element_average, node_displacement, pin_jointed_shear, surface_waviness  # noqa: F401,E501
 from fdeck.physics.effects import grip, symmetry  # noqa: F401
 from fdeck.physics.measures import draw_in, wrinkles  # noqa: F401
-from fdeck.physics.elements import hex8_ans  # noqa: F401
+from fdeck.physics.elements import hex8_ans, hex8_ans_fbar  # noqa: F401
 from fdeck.physics.effects import selective_mass  # noqa: F401
 from fdeck.physics.effects import subcycling  # noqa: F401

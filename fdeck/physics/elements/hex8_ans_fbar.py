@@ -1,0 +1,285 @@
+"""Eight-node hexahedra ``ans_tbar`` and ``ans_fbar``: the assumed natural shears of ``ans`` plus an element-averaged
+measure, as F-bar averages the Jacobian.
+
+Why. ``ans`` (``hex8_ans``) bends without shear locking, but on the thick interlock of [B] (MODELS §4, three-point
+bending) the parasitic transverse shear it removes was also what held back the spurious transverse modes: on the
+3 mm deck its indicator is 1.99 mm alone and 0.084 mm with fibre bending, against F-bar's 0.118 and 0.022 mm.
+F-bar holds them back another way: F_bar = (J_bar / J)^(1/3) F passes a third of any element-scale volume change
+into the fibre stretch, so a thickness that varies along the fibre inside an element (the u_z ~ xi zeta pattern
+that dominates the `ans` run) meets the fibre stiffness. Both formulations here give the material
+
+    F^ = r F~,   r = (m_bar / m~)^(1/3),
+
+with F~ the ``ans`` gradient (F~^T F~ = C~, the assumed-shear right Cauchy-Green tensor), m~ a scalar measure at
+the point and m_bar its element mean:
+
+* ``ans_fbar``: m = det F. m~ = det F~, m_bar = (1/V0) sum_q w_q det F_q from the *true* F (m_bar V0 is the current
+  element volume). F-bar on top of the assumed shears: it cures volumetric locking of isotropic laws too, but with
+  a bimodular fabric it passes the element-scale volume change of the compressed, soft fibres into the stiff weft
+  and compaction: cantilevers with 1 % fibre compression are 12-18 % too stiff on four layers
+  (``test_bending_locking``).
+* ``ans_tbar``: m = T = (f3 . C~^-1 . f3)^(-1/2), the stretch normal to the deformed fibre plane (the exponential of
+  fabric_hyper's compaction invariant; f3 the reference through-thickness direction, third row of the frame), and
+  m_bar = (1/V0) sum_q w_q T~_q. Only thickness changes are coupled into the fibre stretch, the fibre stretch's own
+  gradient (bending) is left to the element: cantilevers as ``ans``, the three-point-bending indicator as F-bar's.
+  Not a cure for volumetric locking (T is not the volume).
+
+For every affine motion F~ = F and m~ is uniform, so r = 1: the patch stress and the objectivity of ``ans`` are
+kept (r is a ratio of invariants of C~).
+
+Forces, exact derivatives of W = sum_q w_q psi(F^_q). With S^ = F^-1 P^ (the law's second Piola-Kirchhoff stress
+at F^) and p_q = (P^ : F^) / 3 = r (P^ : F~) / 3, as in F-bar (de Souza Neto, Peric, Dutko and Owen, Design of simple
+low order finite elements for large strain analysis of nearly incompressible solids, 1996):
+
+    dW = sum_q w_q [1/2 r^2 S^ : dC~_q - p_q d ln m~_q] + (sum_q w_q p_q) d ln m_bar.
+
+``ans_fbar``: d ln m~ = 1/2 C~^-1 : dC~, so the first part is ``hex8_ans.forces_ans`` fed with the stress
+P_eff = F~ (r^2 S^ - p C~^-1) = r P^ - p F~^-T (that kernel takes S = F~^-1 P_eff), and the second part is F-bar's
+mean-dilatation force (pbar / J_bar) sum_q w_q cof F_q . dN_q, pbar the volume average of p.
+``ans_tbar``: d ln T~ = 1/2 (n (x) n) : dC~ / (f3 . n), n = C~^-1 f3, and m_bar is itself a function of the C~_q, so
+everything goes through ``forces_ans`` with P_eff = r P^ + (pbar T~ / T_bar - p) F~^-T f3 (x) n / (f3 . n).
+
+Stable step: the ``element_dt`` rule with F-bar's coupling 1/9; without it the estimate exceeds the exact critical
+step of thin fabric meshes (exact / estimate 0.63-0.77, ``test_bending_locking``).
+Units as in ``hex8``: x [mm], forces [N], stresses [MPa], volumes [mm^3].
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from fdeck.compile.errors import CompileError
+from fdeck.jit import njit_parallel, prange
+from fdeck.physics.elements.hex8 import _det_at, _inline
+from fdeck.physics.elements.hex8_ans import Hex8AnsGroup, forces_ans, kinematics_ans
+from fdeck.registry import FormulationKind, register_formulation
+
+COUPLING = 1.0 / 9.0
+"""Stable-step coupling of the volume averaging (as F-bar's, ``hex8.Hex8Group``)."""
+
+
+@_inline
+def _cof(F, e, q, i, j):
+    """Cofactor (i, j) of F[e, q] (F (n_el, n_qp, 3, 3)): cof F = det F F^-T, indexed in place."""
+    i1, i2 = (i + 1) % 3, (i + 2) % 3
+    j1, j2 = (j + 1) % 3, (j + 2) % 3
+    return F[e, q, i1, j1] * F[e, q, i2, j2] - F[e, q, i1, j2] * F[e, q, i2, j1]
+
+
+@njit_parallel
+def fbar_on_ans(w, J, Fans, Jans, Jbar, ratio, Fmat):
+    """Fmat (n_el, 8, 3, 3) = ratio F~ with ratio (n_el, 8) = (Jbar / J~)^(1/3), J~ = det F~ into Jans (n_el, 8),
+    Jbar (n_el,) = sum_q w_q J_q / V0 from the true Jacobians J (n_el, 8); w (n_el, 8) point volumes [mm^3].
+    A non-positive J~ or Jbar gives nan (the engine's inversion monitor reports it)."""
+    n_qp = w.shape[1]
+    for e in prange(w.shape[0]):
+        vol = 0.0
+        jw = 0.0
+        for q in range(n_qp):
+            vol += w[e, q]
+            jw += w[e, q] * J[e, q]
+        Jbar[e] = jw / vol
+        for q in range(n_qp):
+            ja = _det_at(Fans, e, q)
+            Jans[e, q] = ja
+            r = (Jbar[e] / ja) ** (1.0 / 3.0) if ja > 0.0 and Jbar[e] > 0.0 else np.nan
+            ratio[e, q] = r
+            for i in range(3):
+                for j in range(3):
+                    Fmat[e, q, i, j] = r * Fans[e, q, i, j]
+
+
+@njit_parallel
+def stress_ans_fbar(Fans, Jans, ratio, Pmat, w, Peff, p, pbar):
+    """Peff (n_el, 8, 3, 3) = r P^ - p F~^-T [MPa], the stress ``forces_ans`` turns into the C~ part of dW; p
+    (n_el, 8) = r (P^ : F~) / 3 [MPa] and pbar (n_el,) its volume average, the J_bar part. Pmat = dpsi/dF^
+    (n_el, 8, 3, 3) from the material at F^ = r F~."""
+    n_qp = w.shape[1]
+    for e in prange(w.shape[0]):
+        vol = 0.0
+        pw = 0.0
+        for q in range(n_qp):
+            pf = 0.0
+            for i in range(3):
+                for j in range(3):
+                    pf += Pmat[e, q, i, j] * Fans[e, q, i, j]
+            r = ratio[e, q]
+            p[e, q] = r * pf / 3.0
+            pw += w[e, q] * p[e, q]
+            vol += w[e, q]
+            c = p[e, q] / Jans[e, q]  # p F~^-T = (p / J~) cof F~
+            for i in range(3):
+                for j in range(3):
+                    Peff[e, q, i, j] = r * Pmat[e, q, i, j] - c * _cof(Fans, e, q, i, j)
+        pbar[e] = pw / vol
+
+
+@njit_parallel
+def add_mean_dilatation(F, Jbar, pbar, dN, w, fe):
+    """fe (n_el, 8, 3) += (pbar / Jbar) sum_q w_q cof(F_q) . dN_qa [N]: the derivative of (sum_q w_q p_q) ln Jbar
+    with p held, Jbar = sum_q w_q det F_q / V0 from the true F (n_el, 8, 3, 3); dN (n_el, 8, 8, 3) [1/mm]."""
+    n_qp = dN.shape[1]
+    for e in prange(fe.shape[0]):
+        s = pbar[e] / Jbar[e]
+        for q in range(n_qp):
+            c00, c01, c02 = _cof(F, e, q, 0, 0), _cof(F, e, q, 0, 1), _cof(F, e, q, 0, 2)
+            c10, c11, c12 = _cof(F, e, q, 1, 0), _cof(F, e, q, 1, 1), _cof(F, e, q, 1, 2)
+            c20, c21, c22 = _cof(F, e, q, 2, 0), _cof(F, e, q, 2, 1), _cof(F, e, q, 2, 2)
+            k = s * w[e, q]
+            for a in range(8):
+                d0, d1, d2 = k * dN[e, q, a, 0], k * dN[e, q, a, 1], k * dN[e, q, a, 2]
+                fe[e, a, 0] += c00 * d0 + c01 * d1 + c02 * d2
+                fe[e, a, 1] += c10 * d0 + c11 * d1 + c12 * d2
+                fe[e, a, 2] += c20 * d0 + c21 * d1 + c22 * d2
+
+
+class Hex8AnsFbarGroup(Hex8AnsGroup):
+    """Hexahedra of formulation ``ans_fbar`` (module docstring). ``F`` is the true deformation gradient, ``Fans``
+    (n_el, 8, 3, 3) the assumed-shear one, ``F_material`` = ratio Fans the one the material sees (output stresses
+    and diagnostics use it); ``Jbar`` (n_el,) the mean Jacobian."""
+
+    def __init__(self, name, formulation, X, conn, ids, material, params, frame, rho, hourglass=None):
+        super().__init__(name, formulation, X, conn, ids, material, params, frame, rho, None)
+        n_el = len(self.conn)
+        self.Fans = self.F.copy()
+        self.Jans, self.ratio, self.p = np.ones((n_el, 8)), np.ones((n_el, 8)), np.zeros((n_el, 8))
+        self.Jbar, self.pbar = np.ones(n_el), np.zeros(n_el)
+        self.Peff = np.zeros_like(self.P)
+        self.dt_coupling = COUPLING
+
+    def update(self, x, v):
+        """Kinematics, material, element forces at positions x (n_node, 3); v unused (no hourglass control)."""
+        a = self.ans
+        kinematics_ans(x, self.conn, self.b, self.dN, a["dxi_s"], a["index"], a["Jinv"], a["Gq"], a["Gs"],
+                       self.F, self.J, self.Fans, self.F0, self.gs)
+        fbar_on_ans(self.w, self.J, self.Fans, self.Jans, self.Jbar, self.ratio, self.F_material)
+        self.material.evaluate(self.F_material, self.frame, self.params, self.state, self.P, self.psi, self.modulus)
+        stress_ans_fbar(self.Fans, self.Jans, self.ratio, self.P, self.w, self.Peff, self.p, self.pbar)
+        forces_ans(self.F, self.Fans, self.Peff, self.dN, self.w, self.b, a["dxi_s"], a["index"], a["Jinv"],
+                   a["Gq"], a["Gs"], self.F0, self.gs, self.fe)
+        add_mean_dilatation(self.F, self.Jbar, self.pbar, self.dN, self.w, self.fe)
+
+    def cell_fields(self, idx=None) -> dict[str, np.ndarray]:
+        """As ``Hex8Group.cell_fields`` (at F^), plus ``J_bar`` (n,) the elements' mean Jacobian."""
+        out = super().cell_fields(idx)
+        out["J_bar"] = self.Jbar[np.arange(len(self.conn)) if idx is None else np.asarray(idx)]
+        return out
+
+
+@_inline
+def _thickness_direction(Fans, frame, e, q, G, k):
+    """k = F~^-T f3 for point (e, q) into k (3,), with G (3, 3) scratch holding F~^-1; returns
+    |k|^2 = f3 . C~^-1 . f3 = 1 / T~^2 (T~ the thickness stretch normal to the deformed fibre plane)."""
+    d = _det_at(Fans, e, q)
+    for i in range(3):
+        i1, i2 = (i + 1) % 3, (i + 2) % 3
+        for j in range(3):
+            j1, j2 = (j + 1) % 3, (j + 2) % 3
+            # (F^-1)_ji = cof(F)_ij / det F
+            G[j, i] = (Fans[e, q, i1, j1] * Fans[e, q, i2, j2] - Fans[e, q, i1, j2] * Fans[e, q, i2, j1]) / d
+    n2 = 0.0
+    for i in range(3):
+        k[i] = G[0, i] * frame[e, 2, 0] + G[1, i] * frame[e, 2, 1] + G[2, i] * frame[e, 2, 2]
+        n2 += k[i] * k[i]
+    return n2
+
+
+@njit_parallel
+def tbar_on_ans(w, Fans, frame, T, Tbar, ratio, Fmat):
+    """Fmat (n_el, 8, 3, 3) = ratio F~, ratio (n_el, 8) = (Tbar / T~)^(1/3), with T~ (n_el, 8) =
+    (f3 . C~^-1 . f3)^(-1/2) the stretch normal to the deformed fibre plane (exp of fabric_hyper's compaction
+    invariant) and Tbar (n_el,) its volume average; frame (n_el, 3, 3) rows f1, f2, f3. A non-positive det F~
+    gives nan."""
+    n_qp = w.shape[1]
+    for e in prange(w.shape[0]):
+        G = np.empty((3, 3))
+        k = np.empty(3)
+        vol = 0.0
+        tw = 0.0
+        for q in range(n_qp):
+            t = 1.0 / np.sqrt(_thickness_direction(Fans, frame, e, q, G, k)) if _det_at(Fans, e, q) > 0.0 else np.nan
+            T[e, q] = t
+            vol += w[e, q]
+            tw += w[e, q] * t
+        Tbar[e] = tw / vol
+        for q in range(n_qp):
+            r = (Tbar[e] / T[e, q]) ** (1.0 / 3.0)
+            ratio[e, q] = r
+            for i in range(3):
+                for j in range(3):
+                    Fmat[e, q, i, j] = r * Fans[e, q, i, j]
+
+
+@njit_parallel
+def stress_ans_tbar(Fans, frame, T, Tbar, ratio, Pmat, w, p, Peff):
+    """Peff (n_el, 8, 3, 3) = F~ S_eff [MPa], S_eff = r^2 S^ + (pbar T~ / Tbar - p) m (x) m / (f3 . m), m = C~^-1 f3,
+    p = r (P^ : F~) / 3 (n_el, 8) [MPa] and pbar its volume average: the whole dW through dC~ (Tbar is itself a
+    function of the C~_q). Pmat = dpsi/dF^ (n_el, 8, 3, 3) from the material at F^ = r F~."""
+    n_qp = w.shape[1]
+    for e in prange(w.shape[0]):
+        G = np.empty((3, 3))
+        k = np.empty(3)
+        m = np.empty(3)
+        vol = 0.0
+        pw = 0.0
+        for q in range(n_qp):
+            pf = 0.0
+            for i in range(3):
+                for j in range(3):
+                    pf += Pmat[e, q, i, j] * Fans[e, q, i, j]
+            p[e, q] = ratio[e, q] * pf / 3.0
+            pw += w[e, q] * p[e, q]
+            vol += w[e, q]
+        pbar = pw / vol
+        for q in range(n_qp):
+            n2 = _thickness_direction(Fans, frame, e, q, G, k)
+            for i in range(3):
+                m[i] = G[i, 0] * k[0] + G[i, 1] * k[1] + G[i, 2] * k[2]  # C~^-1 f3 = F~^-1 F~^-T f3
+            c = (pbar * T[e, q] / Tbar[e] - p[e, q]) / n2
+            r = ratio[e, q]
+            # F~ (r^2 S^) = r P^ (S^ = F^-1 P^, F^ = r F~); F~ m = F~^-T f3 = k
+            for i in range(3):
+                for j in range(3):
+                    Peff[e, q, i, j] = r * Pmat[e, q, i, j] + c * k[i] * m[j]
+
+
+class Hex8AnsTbarGroup(Hex8AnsGroup):
+    """Hexahedra of formulation ``ans_tbar``: as ``ans_fbar`` with the element mean of the thickness stretch
+    T = (f3 . C~^-1 . f3)^(-1/2) in place of the mean Jacobian (module docstring). ``Fans`` the assumed-shear
+    gradient, ``F_material`` = ratio Fans the one the material sees, ``T`` (n_el, 8), ``Tbar`` (n_el,)."""
+
+    def __init__(self, name, formulation, X, conn, ids, material, params, frame, rho, hourglass=None):
+        super().__init__(name, formulation, X, conn, ids, material, params, frame, rho, None)
+        n_el = len(self.conn)
+        self.Fans = self.F.copy()
+        self.T, self.ratio, self.p = np.ones((n_el, 8)), np.ones((n_el, 8)), np.zeros((n_el, 8))
+        self.Tbar = np.ones(n_el)
+        self.Peff = np.zeros_like(self.P)
+        self.dt_coupling = COUPLING
+
+    def update(self, x, v):
+        """Kinematics, material, element forces at positions x (n_node, 3); v unused (no hourglass control)."""
+        a = self.ans
+        kinematics_ans(x, self.conn, self.b, self.dN, a["dxi_s"], a["index"], a["Jinv"], a["Gq"], a["Gs"],
+                       self.F, self.J, self.Fans, self.F0, self.gs)
+        tbar_on_ans(self.w, self.Fans, self.frame, self.T, self.Tbar, self.ratio, self.F_material)
+        self.material.evaluate(self.F_material, self.frame, self.params, self.state, self.P, self.psi, self.modulus)
+        stress_ans_tbar(self.Fans, self.frame, self.T, self.Tbar, self.ratio, self.P, self.w, self.p, self.Peff)
+        forces_ans(self.F, self.Fans, self.Peff, self.dN, self.w, self.b, a["dxi_s"], a["index"], a["Jinv"],
+                   a["Gq"], a["Gs"], self.F0, self.gs, self.fe)
+
+
+GROUPS = {"ans_fbar": Hex8AnsFbarGroup, "ans_tbar": Hex8AnsTbarGroup}
+
+
+def build(name, section, X, conn, ids, material, params, orientation, rho, cell_type):
+    """Registry hook: the group of ``section.formulation`` (``GROUPS``) for one section card."""
+    try:
+        frames = orientation.frames()
+    except ValueError as exc:
+        raise CompileError([(("orientation",), str(exc))]) from None
+    return GROUPS[section.formulation](name, section.formulation, X, conn, ids, material, params, frames, rho, None)
+
+
+for _name in GROUPS:
+    register_formulation(FormulationKind(_name, build, 8))
