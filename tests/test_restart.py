@@ -110,7 +110,17 @@ output:
   checkpoint: {every: 10, keep: 100}
 """
 
-DECKS = {"hex": HEX, "shell": SHELL, "bend": BEND, "contact": CONTACT}
+# The contact deck on a finer block with one measure of every kind that holds state or constants in tuples
+# (the wrinkle indicator's regions are (name, node indices) pairs: a full-size forming restart once failed on them).
+MEASURES = CONTACT.replace("title: tiny block pressed", "title: block with every measure, pressed").replace(
+    "divisions: [2, 2, 1]", "divisions: [4, 4, 1]") + """  measures:
+    - {type: wrinkles, name: wrinkles, nodes: zmax, radius: 6.0, regions: [xmax]}
+    - {type: draw_in, name: draw, nodes: xmax}
+    - {type: node_displacement, name: top, nodes: zmax}
+    - {type: surface_waviness, name: wave, nodes: zmax}
+"""
+
+DECKS = {"hex": HEX, "shell": SHELL, "bend": BEND, "contact": CONTACT, "measures": MEASURES}
 
 
 def write_deck(folder: Path, text: str, name: str = "deck") -> Path:
@@ -171,7 +181,8 @@ def test_restart_from_half_time_is_bitwise(tmp_path, kind, threads, parallel_bel
     """Requirement: a run restarted from a checkpoint at half of its cycles ends bitwise identical to the
     uninterrupted run (SHA-256 of final x, v, directors, of history.csv and of the .pvd/.xdmf indexes), for a
     hexahedral deck, a shell deck, a deck with fibre bending and damping, and a block pressed and dragged by a
-    moving rigid tool with Coulomb friction (tool position and stick springs are state), on 1 and 2 threads
+    moving rigid tool with Coulomb friction (tool position and stick springs are state), the same with one
+    measure of every kind that keeps state (wrinkles with a region, draw-in, displacement, waviness), on 1 and 2 threads
     (tolerance zero: the same operations on the same bits)."""
     if threads > numba.config.NUMBA_NUM_THREADS:
         pytest.skip(f"NUMBA_NUM_THREADS={numba.config.NUMBA_NUM_THREADS}")

@@ -78,6 +78,15 @@ def _restored_value(live, snap):
     return None
 
 
+def _same_leaf(live, saved) -> bool:
+    """Whether a saved scalar (or tuple of scalars) equals the live one, NaN equal to NaN."""
+    if type(live) is not type(saved):
+        return False
+    if isinstance(live, (tuple, list)):
+        return len(live) == len(saved) and all(_same_leaf(a, b) for a, b in zip(live, saved))
+    return bool(live == saved) or (live != live and saved != saved)
+
+
 def restore(obj, snap, _seen=None) -> None:
     """Write the snapshot ``snap`` (from ``capture``) back into the live object ``obj`` of the same structure."""
     if snap is None:
@@ -97,7 +106,9 @@ def restore(obj, snap, _seen=None) -> None:
             new = _restored_value(live, s)
             if new is not None:
                 if isinstance(obj, tuple):
-                    raise ValueError(f"cannot restore item {key} of a tuple with a value of another shape")
+                    if s[0] == _LEAF and _same_leaf(live, new):
+                        continue  # a constant in a tuple, such as a region's name beside its node indices
+                    raise ValueError(f"cannot restore item {key} of a tuple with another value ({new!r:.60})")
                 obj[key] = new
     elif kind == _ARRAY:
         obj[...] = data
