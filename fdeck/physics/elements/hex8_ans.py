@@ -27,11 +27,18 @@ the uniform gradient (exact for every affine motion), G_i = dX/dxi_i, g_i = dx/d
 
     2 E~_ij(q) = [g_i.g_j - h_i.h_j](p_ij(q)) + [h_i.h_j - G_i.G_j](q),       C~ = I + 2 J0^-T E~ J0^-1 at q,
 
-which equals the true strain at q for every affine motion (then g = h everywhere). Every term is a dot product of
-current vectors, so C~ is objective. The material sees F~ = F Rc^-1 R~, Rc and R~ the upper Cholesky factors of
+which equals the true strain at q for every affine motion (then g = h everywhere). The modification this makes,
+K_q = C~_q - C_q, is then made mean-free over the element: C~_q = C_q + K_q - K_bar, K_bar = sum_r w_r K_r / V0.
+Without it a uniform stress still does work on the sampled shears of a non-affine variation wherever the natural
+components J0^-1 S J0^-T differ between points (any non-parallelepiped element), and the interior node of a
+distorted patch carried 3.8e-2 of the largest force (measured 2026-11-26); with it sum_q w_q S : d(K_q - K_bar) = 0
+for every uniform S, the mean-dilatation idea of B-bar applied to the shear modification. On parallelepipeds K_bar
+vanishes to first order in the strain (the parasitic shears are odd in the natural coordinates), so block meshes
+bend as before. Every term is a dot product of current vectors, so C~ is objective. The material sees F~ = F Rc^-1 R~, Rc and R~ the upper Cholesky factors of
 C = F^T F and C~ (F~^T F~ = C~, F~ = F when C~ = C, F~ -> Q F~ when F -> Q F), so any law of F (fabric_hyper,
 linear_elastic, neo_hookean) serves unchanged; W = sum_q w_q psi(C~_q) and the forces are its exact derivative
-(``forces_ans``): dW = sum_q w_q (F S : dF + S~_ij dDelta_ij) with S = F~^-1 P~, S~ = J0^-1 S J0^-T.
+(``forces_ans``): dW = sum_q w_q (F S : dF + S~_ij dDelta_ij) with S = F~^-1 P~ and
+S~ = J0^-1 (S - S_bar) J0^-T, S_bar the element's volume mean of S (the mean-free modification's share).
 
 Known limits: normal strains are fully integrated, so nearly incompressible isotropic laws lock volumetrically as
 with ``full`` (fabrics are compressible: use ``fbar`` for rubber); a trapezoidal (curved) element through a thin
@@ -113,13 +120,17 @@ def _natural(A, G, H, i, j):
 
 
 @njit_parallel
-def kinematics_ans(x, conn, b, dN, dxi_s, index, Jinv, Gq, Gs, F, J, Fans, F0s, gs):
+def kinematics_ans(x, conn, b, dN, w, dxi_s, index, Jinv, Gq, Gs, F, J, Fans, F0s, gs):
     """True F (n_el, 8, 3, 3), J = det F (n_el, 8) and the material's F~ (n_el, 8, 3, 3) with F~^T F~ = C~; keeps
     for the forces F0s (n_el, 3, 3), the uniform gradient, and gs (n_el, 6, 3, 2), the current base vectors
-    g_i, g_j of each sampling point's pair [mm]."""
+    g_i, g_j of each sampling point's pair [mm]. w (n_el, 8) point volumes [mm^3]: C~_q = C_q + K_q - K_bar with
+    K_q = J0^-T Delta_q J0^-1 the assumed-shear modification and K_bar = sum_r w_r K_r / V0 its element mean."""
     for e in prange(conn.shape[0]):
         xe = np.empty((8, 3))
         C0 = np.zeros((3, 3))
+        Cq = np.empty((8, 3, 3))
+        Kq = np.empty((8, 3, 3))
+        Kbar = np.zeros((3, 3))
         C = np.empty((3, 3))
         W = np.empty((3, 3))
         D = np.zeros((3, 3))  # natural shear correction Delta, zero diagonal
@@ -153,6 +164,7 @@ def kinematics_ans(x, conn, b, dN, dxi_s, index, Jinv, Gq, Gs, F, J, Fans, F0s, 
                     gs[e, s, r, c] = acc
             A[s] = (gs[e, s, 0, 0] * gs[e, s, 0, 1] + gs[e, s, 1, 0] * gs[e, s, 1, 1] + gs[e, s, 2, 0] * gs[e, s, 2, 1]
                     - _natural(C0, Gs[e, s], Gs[e, s], i, j))
+        vol = 0.0
         for q in range(8):
             Fq, Ji = F[e, q], Jinv[e, q]
             for i in range(3):
@@ -165,20 +177,37 @@ def kinematics_ans(x, conn, b, dN, dxi_s, index, Jinv, Gq, Gs, F, J, Fans, F0s, 
             for i in range(3):
                 for j in range(3):
                     C[i, j] = Fq[0, i] * Fq[0, j] + Fq[1, i] * Fq[1, j] + Fq[2, i] * Fq[2, j]
+                    Cq[q, i, j] = C[i, j]
                     W[i, j] = C[i, j] - C0[i, j]
             for k in range(3):
                 i, j = PAIRS[k]
                 d = A[index[q, k]] - _natural(W, Gq[e, q], Gq[e, q], i, j)
                 D[i, j] = d
                 D[j, i] = d
-            # C~ = C + Jinv^T D Jinv (T = D Jinv first)
+            # K_q = Jinv^T D Jinv (T = D Jinv first), and its volume-weighted sum
             for i in range(3):
                 for j in range(3):
                     T[i, j] = D[i, 0] * Ji[0, j] + D[i, 1] * Ji[1, j] + D[i, 2] * Ji[2, j]
-            _chol_upper(C, Rc)
+            wq = w[e, q]
+            vol += wq
             for i in range(3):
                 for j in range(3):
-                    C[i, j] += Ji[0, i] * T[0, j] + Ji[1, i] * T[1, j] + Ji[2, i] * T[2, j]
+                    kij = Ji[0, i] * T[0, j] + Ji[1, i] * T[1, j] + Ji[2, i] * T[2, j]
+                    Kq[q, i, j] = kij
+                    Kbar[i, j] += wq * kij
+        for i in range(3):
+            for j in range(3):
+                Kbar[i, j] /= vol
+        for q in range(8):
+            Fq = F[e, q]
+            for i in range(3):
+                for j in range(3):
+                    C[i, j] = Cq[q, i, j]
+            _chol_upper(C, Rc)
+            # C~ = C + K_q - K_bar
+            for i in range(3):
+                for j in range(3):
+                    C[i, j] += Kq[q, i, j] - Kbar[i, j]
             _chol_upper(C, Ra)
             # F~ = F Rc^-1 Ra: back substitution Rc M = Ra, then F M
             for j in range(3):
@@ -210,19 +239,35 @@ def forces_ans(F, Fans, Pans, dN, w, b, dxi_s, index, Jinv, Gq, Gs, F0s, gs, fe)
         M = np.empty((3, 3))
         B0 = np.zeros((3, 3))  # symmetric factor of the dF0 term (before F0)
         cs = np.zeros(6)
+        Sq = np.empty((8, 3, 3))  # sym(S) at the points
+        Sbar = np.zeros((3, 3))
         for a in range(8):
             for i in range(3):
                 fe[e, a, i] = 0.0
+        vol = 0.0
         for q in range(8):
             inv3(Fans[e, q], Fi)
-            Pq, Fq, Ji, G = Pans[e, q], F[e, q], Jinv[e, q], Gq[e, q]
+            Pq = Pans[e, q]
             for i in range(3):
                 for j in range(3):
                     S[i, j] = Fi[i, 0] * Pq[0, j] + Fi[i, 1] * Pq[1, j] + Fi[i, 2] * Pq[2, j]
+            wq = w[e, q]
+            vol += wq
             for i in range(3):
                 for j in range(3):
-                    T[i, j] = 0.5 * ((S[i, 0] + S[0, i]) * Ji[j, 0] + (S[i, 1] + S[1, i]) * Ji[j, 1]
-                                     + (S[i, 2] + S[2, i]) * Ji[j, 2])  # sym(S) Jinv^T
+                    sij = 0.5 * (S[i, j] + S[j, i])
+                    Sq[q, i, j] = sij
+                    Sbar[i, j] += wq * sij
+        for i in range(3):
+            for j in range(3):
+                Sbar[i, j] /= vol
+        for q in range(8):
+            Fq, Ji, G = F[e, q], Jinv[e, q], Gq[e, q]
+            # the modification K_q - K_bar sees the stress's deviation from its element mean, S - S_bar
+            for i in range(3):
+                for j in range(3):
+                    T[i, j] = ((Sq[q, i, 0] - Sbar[i, 0]) * Ji[j, 0] + (Sq[q, i, 1] - Sbar[i, 1]) * Ji[j, 1]
+                               + (Sq[q, i, 2] - Sbar[i, 2]) * Ji[j, 2])  # (S - S_bar) Jinv^T
             for i in range(3):
                 for j in range(3):
                     Sn[i, j] = w[e, q] * (Ji[i, 0] * T[0, j] + Ji[i, 1] * T[1, j] + Ji[i, 2] * T[2, j])
@@ -232,14 +277,12 @@ def forces_ans(F, Fans, Pans, dN, w, b, dxi_s, index, Jinv, Gq, Gs, F0s, gs, fe)
             # split w S~ into its diagonal (kept at q) and off-diagonal (moved to the affine part) in Cartesian form
             for i in range(3):
                 for j in range(3):
-                    dg = 0.0
                     off = 0.0
                     for k in range(3):
-                        dg += G[i, k] * Sn[k, k] * G[j, k]
                         for m in range(3):
                             if m != k:
                                 off += G[i, k] * Sn[k, m] * G[j, m]
-                    T[i, j] = dg
+                    T[i, j] = w[e, q] * Sq[q, i, j] - off
                     B0[i, j] += off
             for i in range(3):
                 for j in range(3):
@@ -282,7 +325,7 @@ class Hex8AnsGroup(Hex8Group):
     def update(self, x, v):
         """Kinematics, material, element forces at positions x (n_node, 3); v unused (no hourglass control)."""
         a = self.ans
-        kinematics_ans(x, self.conn, self.b, self.dN, a["dxi_s"], a["index"], a["Jinv"], a["Gq"], a["Gs"],
+        kinematics_ans(x, self.conn, self.b, self.dN, self.w, a["dxi_s"], a["index"], a["Jinv"], a["Gq"], a["Gs"],
                        self.F, self.J, self.F_material, self.F0, self.gs)
         self.material.evaluate(self.F_material, self.frame, self.params, self.state, self.P, self.psi, self.modulus)
         forces_ans(self.F, self.F_material, self.P, self.dN, self.w, self.b, a["dxi_s"], a["index"], a["Jinv"],

@@ -150,7 +150,7 @@ class Hex8AnsFbarGroup(Hex8AnsGroup):
     def update(self, x, v):
         """Kinematics, material, element forces at positions x (n_node, 3); v unused (no hourglass control)."""
         a = self.ans
-        kinematics_ans(x, self.conn, self.b, self.dN, a["dxi_s"], a["index"], a["Jinv"], a["Gq"], a["Gs"],
+        kinematics_ans(x, self.conn, self.b, self.dN, self.w, a["dxi_s"], a["index"], a["Jinv"], a["Gq"], a["Gs"],
                        self.F, self.J, self.Fans, self.F0, self.gs)
         fbar_on_ans(self.w, self.J, self.Fans, self.Jans, self.Jbar, self.ratio, self.F_material)
         self.material.evaluate(self.F_material, self.frame, self.params, self.state, self.P, self.psi, self.modulus)
@@ -260,7 +260,7 @@ class Hex8AnsTbarGroup(Hex8AnsGroup):
     def update(self, x, v):
         """Kinematics, material, element forces at positions x (n_node, 3); v unused (no hourglass control)."""
         a = self.ans
-        kinematics_ans(x, self.conn, self.b, self.dN, a["dxi_s"], a["index"], a["Jinv"], a["Gq"], a["Gs"],
+        kinematics_ans(x, self.conn, self.b, self.dN, self.w, a["dxi_s"], a["index"], a["Jinv"], a["Gq"], a["Gs"],
                        self.F, self.J, self.Fans, self.F0, self.gs)
         tbar_on_ans(self.w, self.Fans, self.frame, self.T, self.Tbar, self.ratio, self.F_material)
         self.material.evaluate(self.F_material, self.frame, self.params, self.state, self.P, self.psi, self.modulus)
