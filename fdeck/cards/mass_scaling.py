@@ -24,6 +24,16 @@ class MassScaling(Card):
         "scaling (the one a deck was validated with, e.g. the published factor of a forming set-up), elements whose "
         "step is below this target get added mass on their deformation modes only, so the uniform translational "
         "inertia stays and the step grows further. Not with `selective`.")
+    track_target: bool | float = Field(
+        False, description="Selective scaling with a target (`selective_target_dt`, or `target_dt` with "
+        "`selective`): keep the step at the target DURING the step (`true`), or at least at a lower floor "
+        "(a step [s], at most the target: less mass, so a more quasi-static blank). The target is met at rest; an "
+        "element whose step "
+        "then falls below it (fibres stiffening in tension, a compacted ply) gets more added mass on its deformation "
+        "modes at once, 5 % above what it needs; never for a step above what the effects allow anyway (contact "
+        "penalty springs). The kinetic energy that mass brings is booked as work "
+        "(`mass_tracking_work`), the added mass is a history column (`tracked_added_mass`, per cent of the "
+        "physical mass). LS-DYNA adds conventional mass during a run in the same way (negative DT2MS).")
     cg_tolerance: float = Field(1e-4, gt=0, lt=1, description="Selective scaling: the conjugate-gradient solve "
                                 "stops when the residual's norm (weighted by the inverse diagonal) falls below "
                                 "this fraction of the right-hand side's [-].")
@@ -37,7 +47,28 @@ class MassScaling(Card):
         if self.selective and self.selective_target_dt is not None:
             raise ValueError("`selective: true` makes `factor`/`target_dt` selective; `selective_target_dt` adds "
                              "selective scaling on top of a uniform one: give one of them")
+        if self.track_target and not (self.selective_target_dt is not None
+                                      or (self.selective and self.target_dt is not None)):
+            raise ValueError("`track_target` keeps a selective target during the step: give `selective_target_dt`, "
+                             "or `target_dt` with `selective: true`")
+        if not isinstance(self.track_target, bool) and not 0 < self.track_target <= self.selective_target:
+            raise ValueError(f"`track_target` as a step must lie in (0, {self.selective_target:g}] s, the "
+                             "selective target (it is the floor kept below it)")
         return self
+
+    @property
+    def selective_target(self) -> float | None:
+        """The step [s] selective scaling aims at (None: a factor, no target)."""
+        if self.selective_target_dt is not None:
+            return self.selective_target_dt
+        return self.target_dt if self.selective else None
+
+    @property
+    def tracked_dt(self) -> float | None:
+        """The step [s] kept during the step by added mass (None: not tracked)."""
+        if self.track_target is False:
+            return None
+        return self.selective_target if self.track_target is True else float(self.track_target)
 
     @property
     def is_selective(self) -> bool:

@@ -265,7 +265,14 @@ def _run(problem, sink: Sink, should_stop, resume) -> Result:
                 raise RunStopped(cause, t, el)
 
     def stable_dt(safety):
-        return safety * min([g.stable_dt() for g in groups] + [e.stable_dt() for e in effects])
+        group_dt = [g.stable_dt() for g in groups]
+        effect_dt = min([e.stable_dt() for e in effects], default=math.inf)
+        if sms is not None and sms.active and sms.track_dt is not None:
+            # selective mass that keeps the target step, never above what the effects (contact) allow
+            keep = min(sms.track_dt, safety * effect_dt)
+            if safety * min(group_dt) < keep * (1.0 - 1e-9):
+                group_dt = sms.track(group_dt, keep, safety, v, v_old)
+        return safety * min(group_dt + [effect_dt])
 
     def state(k) -> dict:
         """Everything the loop needs to continue from the end of the current cycle (a checkpoint's engine part)."""

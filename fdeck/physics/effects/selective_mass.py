@@ -6,6 +6,12 @@ The step plan (``compile.problem.plan_steps``) gives each element its factor bet
 checkpoints with the effect), the prescribed-dof mask of the step, and reports: the added kinetic energy
 1/2 v^T dM v (a share of the engine's ``kinetic_energy``, shown, not summed again), the mean and largest
 conjugate-gradient iterations per cycle so far, and the cycles that reached the iteration cap.
+
+With ``track_target`` the step's target is kept during the step (``track``): the engine hands over the groups'
+element steps each cycle; elements below the target get their density (and so beta_e) raised to reach it with
+``HEADROOM``, the conjugate-gradient preconditioner follows, and the kinetic energy the new mass carries at that
+moment, 1/2 dc_e |(I - P_e) v_e|^2, is booked as work (``mass_tracking_work``): the balance stays closed. Only the
+deformation modes get the mass, so momentum and translational inertia stay those of the step's lumped mass.
 """
 
 from __future__ import annotations
@@ -14,9 +20,17 @@ import numpy as np
 
 from fdeck.compile.errors import CompileError
 from fdeck.engine.effect import Effect
-from fdeck.engine.ledger import VALUE, Term
+from fdeck.engine.ledger import VALUE, WORK, Term
 from fdeck.engine.selective_mass import SelectiveMass
 from fdeck.registry import EffectKind, register_effect
+
+
+TOLERANCE = 1e-9
+"""Relative shortfall of an element step below the target that counts: the plan meets the target to round-off."""
+
+HEADROOM = 1.05
+"""A tracked element's step is raised to 1.05 x the target: it then stiffens by about 10 % before it needs mass
+again, so the re-scaling (O(elements) array work) runs every few hundred cycles rather than every cycle."""
 
 
 class SelectiveMassEffect(Effect):
@@ -24,16 +38,29 @@ class SelectiveMassEffect(Effect):
     solves_mass = True  # the engine hands it the accelerations of every cycle (``engine.solver``)
     terms = (Term("added_kinetic_energy", VALUE), Term("cg_iterations_mean", VALUE),
              Term("cg_iterations_max", VALUE), Term("cg_capped_cycles", VALUE))
+    tracking_terms = (Term("mass_tracking_work", WORK), Term("tracked_added_mass", VALUE),
+                      Term("tracked_elements", VALUE))
 
-    def __init__(self, groups: list, X: np.ndarray, selective: list[bool]):
+    def __init__(self, groups: list, X: np.ndarray, selective: list[bool], targets: list[float | None]):
         self.solver = SelectiveMass([g.conn for g in groups], X)
         self.groups = groups
         self.selective = selective
+        self.targets = targets  # per step: the step kept during it [s], or None
+        if any(t is not None for t in targets):
+            self.terms = self.terms + self.tracking_terms
+        self.physical = sum(float(g.mass(g.rho).sum()) for g in groups)  # [t], before any scaling
+        self.offsets = np.cumsum([0] + [len(g.conn) for g in groups])
         self.plan = None
+        self.track_dt = None
         self.ke = 0.0
+        self.tracking_work = 0.0  # [mJ] cumulative
+        self.tracked_mass = 0.0  # [t] added by tracking, as the plan counts added mass (trace share)
+        self.tracked = np.zeros(self.offsets[-1], bool)  # elements given mass by tracking (ever)
 
     def begin_step(self, index, plan):
         self.plan = plan
+        self.track_dt = self.targets[index]
+        self.tracked_mass = 0.0
 
     @property
     def active(self) -> bool:
@@ -53,7 +80,36 @@ class SelectiveMassEffect(Effect):
 
     def term_values(self) -> tuple[float, ...]:
         s = self.solver
-        return (self.ke, s.iterations / max(s.cycles, 1), float(s.max_iterations), float(s.capped))
+        values = (self.ke, s.iterations / max(s.cycles, 1), float(s.max_iterations), float(s.capped))
+        if len(self.terms) > len(values):
+            values += (self.tracking_work, 100.0 * self.tracked_mass / self.physical, float(self.tracked.sum()))
+        return values
+
+    def track(self, group_dt: list[float], keep: float, safety: float, v: np.ndarray, v_old: np.ndarray
+              ) -> list[float]:
+        """Keep the step at ``keep`` [s] (``track_dt``, or less where an effect such as contact bounds the step
+        anyway: mass beyond that would slow the blank and buy nothing): every element whose step (dt_e, as the
+        group computed it this cycle, times ``safety``) is below it gets the density rho_e (HEADROOM keep /
+        (safety dt_e))^2, i.e. more mass on its deformation modes only (translational mass unchanged). Returns the
+        groups' new smallest steps [s]."""
+        target = keep / safety  # element step to reach [s]
+        below = target * (1.0 - TOLERANCE)
+        out = list(group_dt)
+        for i, g in enumerate(self.groups):
+            if not out[i] < below:
+                continue
+            low = np.flatnonzero(g.dt_e < below)
+            factor = (HEADROOM * target / g.dt_e[low]) ** 2
+            drho = np.zeros_like(g.rho)
+            drho[low] = g.rho[low] * (factor - 1.0)
+            g.rho[low] += drho[low]  # the group's own array (``set_density`` copies the plan's)
+            de = g.mass(drho).sum(axis=1)[low]  # added element mass [t]
+            n = g.conn.shape[1]
+            self.tracking_work += self.solver.add(self.offsets[i] + low, de / n, v, v_old)
+            self.tracked_mass += float(de.sum()) * (1.0 - 2.0 / n)  # the plan's trace measure of added mass
+            self.tracked[self.offsets[i] + low] = True
+            out[i] = g.stable_dt()
+        return out
 
     def describe(self, plan) -> str | None:
         steps = [i for i, on in enumerate(self.selective) if on]
@@ -64,11 +120,13 @@ class SelectiveMassEffect(Effect):
         dt1 = min(float(g.rest_dt(r).min()) for g, r in zip(self.groups, plan.rho))
         dt0, dt1 = dt0 * plan.dt_safety, dt1 * plan.dt_safety
         tol, cap = plan.cg
+        tracked = [i for i, t in enumerate(self.targets) if t is not None]
+        keep = f"; the target is kept during steps {tracked} (more mass as elements stiffen)" if tracked else ""
         return (f"selective mass scaling (steps {steps}): translational mass as without it, added mass "
                 f"{100 * plan.added_mass:.3g} % of the physical (uniform and selective) on {int((beta > 0).sum())} "
                 f"of {len(beta)} elements "
                 f"(beta up to {beta.max():.3g}), rest step {dt0:.4g} -> {dt1:.4g} s (x{dt1 / dt0:.3g}); "
-                f"conjugate gradients per cycle, tolerance {tol:g}, cap {cap} iterations")
+                f"conjugate gradients per cycle, tolerance {tol:g}, cap {cap} iterations{keep}")
 
 
 def build(cards: list, ctx) -> SelectiveMassEffect | None:
@@ -90,7 +148,8 @@ def build(cards: list, ctx) -> SelectiveMassEffect | None:
                                  f"{g.cell_type} elements"))
     if problems:
         raise CompileError(problems)
-    return SelectiveMassEffect(ctx.groups, ctx.X, selective)
+    targets = [c.tracked_dt if on else None for c, on in zip(cards, selective)]
+    return SelectiveMassEffect(ctx.groups, ctx.X, selective, targets)
 
 
 register_effect(EffectKind("mass_scaling", build))

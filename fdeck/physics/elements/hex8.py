@@ -368,7 +368,9 @@ class Hex8Group:
         return values[:len(self.terms)]
 
     def set_density(self, rho: np.ndarray) -> None:
-        self.rho = np.ascontiguousarray(rho, float)
+        """Densities (n_el,) [t/mm^3] of the step, copied: the group's own array (mass tracking raises it during a
+        step), never an alias of the step plan's (which a checkpoint saves and restores separately)."""
+        self.rho = np.array(rho, float)
 
     def stable_dt(self) -> float:
         """Smallest element step [s] at the current moduli and densities (see ``element_dt``)."""

@@ -850,7 +850,9 @@ class ShellGroup:
         return (float(self.energy.sum()) + self.e_n,) + tuple(float(np.sum(share[t.name])) for t in self.terms[1:])
 
     def set_density(self, rho: np.ndarray) -> None:
-        self.rho = np.ascontiguousarray(rho, float)
+        """Densities (n_el,) [t/mm^3] of the step, copied: the group's own array (mass tracking raises it during a
+        step), never an alias of the step plan's (which a checkpoint saves and restores separately)."""
+        self.rho = np.array(rho, float)
 
     def stable_dt(self) -> float:
         element_dt(self.modulus, self.wz / self.h, self.fz, self.L0, self.inv_len2, self.C, self.rho, self.dt_e)
