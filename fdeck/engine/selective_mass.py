@@ -43,6 +43,9 @@ import numpy as np
 from fdeck.engine.gather import gather_add, node_slots, node_sum
 from fdeck.jit import njit, njit_parallel, prange
 
+WARM_START_ORDER = 2
+"""Degree of the polynomial through the last cycles' accelerations that starts each solve (0: the last cycle's)."""
+
 CHUNK = 256  # nodes per partial sum of a dot product (fixed, so the sums do not depend on the thread count)
 
 
@@ -259,6 +262,8 @@ class SelectiveMass:
         self.tol, self.max_it = 1e-4, 200
         self.active = False
         self.a = np.zeros((n_node, 3))
+        self.a_last = np.zeros((n_node, 3))  # the two cycles before (warm-start extrapolation)
+        self.a_last2 = np.zeros((n_node, 3))
         self.g = np.zeros((n_node, 3))
         self._work = [np.zeros((n_el, k, 3))] + [np.zeros((n_node, 3)) for _ in range(4)]
         self._part = np.zeros((n_node + CHUNK - 1) // CHUNK)
@@ -310,6 +315,19 @@ class SelectiveMass:
         free, r = self.free, self._r
         np.subtract(f_ext, f_int, out=r)
         r += f_damp
+        # warm start: the free dofs' accelerations extrapolated from the last three cycles (quadratic; linear on
+        # the second cycle). Against the last cycle's alone, mean iterations per cycle measured on the first 6 000
+        # cycles of the coarse tetrahedron 10.6 -> 7.7, double dome 0/90 8.5 -> 6.8, and on 0.15 s of the 5 mm weft
+        # strip 23.4 -> 21.0 (linear extrapolation: 9.1, 7.5, 20.9).
+        a0, a1, a2 = self.a, self.a_last, self.a_last2
+        order = min(WARM_START_ORDER, self.cycles - 1)
+        if order >= 2:
+            a2 += 3.0 * (a0 - a1)  # 3 a0 - 3 a1 + a2
+        elif order == 1:
+            np.subtract(2.0 * a0, a1, out=a2)
+        else:
+            a2[...] = a0
+        self.a, self.a_last, self.a_last2 = a2, a0, a1
         self.a[...] = self.a * free + (v - v_old) / dt_avg * (1.0 - free)
         ye, q, res, z, p = self._work
         it, rel = solve(self.a, r, self.m, self.conn, self.dX, self.Jinv, self.c, self.ptr, self.slots, free,
