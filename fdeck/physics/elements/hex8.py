@@ -170,6 +170,24 @@ def forces(P, dN, w, fe):
         _nodal_forces(P, dN, w, fe, e)
 
 
+@_inline
+def mean_pressure(P, F, ratio, w, p, e):
+    """The F-bar pressures of element e, p[e, q] = ratio[e, q] (P_q : F_q) / 3 [MPa] (P, F (n_el, n_qp, 3, 3),
+    ratio, w, p (n_el, n_qp)), and their volume mean, returned: the mean-dilatation part of every averaged
+    formulation's forces (``forces_fbar``, ``ans_fbar``, ``ans_tbar``)."""
+    vol = 0.0
+    pw = 0.0
+    for q in range(w.shape[1]):
+        pf = 0.0
+        for i in range(3):
+            for j in range(3):
+                pf += P[e, q, i, j] * F[e, q, i, j]
+        p[e, q] = ratio[e, q] * pf / 3.0
+        pw += w[e, q] * p[e, q]
+        vol += w[e, q]
+    return pw / vol
+
+
 @njit_parallel
 def forces_fbar(F, J, Jbar, ratio, Pbar, dN, w, Peff, p, fe):
     """Exact internal forces of W = sum_q w_q psi(Fbar_q); Pbar = dpsi/dFbar (n_el, n_qp, 3, 3).
@@ -180,17 +198,7 @@ def forces_fbar(F, J, Jbar, ratio, Pbar, dN, w, Peff, p, fe):
     """
     n_qp = dN.shape[1]
     for e in prange(fe.shape[0]):
-        vol = 0.0
-        pw = 0.0
-        for q in range(n_qp):
-            pf = 0.0
-            for i in range(3):
-                for j in range(3):
-                    pf += Pbar[e, q, i, j] * F[e, q, i, j]
-            p[e, q] = ratio[e, q] * pf / 3.0
-            pw += w[e, q] * p[e, q]
-            vol += w[e, q]
-        pavg = pw / vol
+        pavg = mean_pressure(Pbar, F, ratio, w, p, e)
         for q in range(n_qp):
             a = ratio[e, q]
             c = (pavg / Jbar[e] * J[e, q] - p[e, q]) / J[e, q]  # c F^-T = (pavg J / Jbar - p) cof(F) / J

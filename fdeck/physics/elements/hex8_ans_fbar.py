@@ -50,7 +50,7 @@ import numpy as np
 
 from fdeck.compile.errors import CompileError
 from fdeck.jit import njit_parallel, prange
-from fdeck.physics.elements.hex8 import _det_at, _inline
+from fdeck.physics.elements.hex8 import _det_at, _inline, mean_pressure
 from fdeck.physics.elements.hex8_ans import Hex8AnsGroup, forces_ans, kinematics_ans
 from fdeck.registry import FormulationKind, register_formulation
 
@@ -96,22 +96,13 @@ def stress_ans_fbar(Fans, Jans, ratio, Pmat, w, Peff, p, pbar):
     (n_el, 8, 3, 3) from the material at F^ = r F~."""
     n_qp = w.shape[1]
     for e in prange(w.shape[0]):
-        vol = 0.0
-        pw = 0.0
+        pbar[e] = mean_pressure(Pmat, Fans, ratio, w, p, e)
         for q in range(n_qp):
-            pf = 0.0
-            for i in range(3):
-                for j in range(3):
-                    pf += Pmat[e, q, i, j] * Fans[e, q, i, j]
             r = ratio[e, q]
-            p[e, q] = r * pf / 3.0
-            pw += w[e, q] * p[e, q]
-            vol += w[e, q]
             c = p[e, q] / Jans[e, q]  # p F~^-T = (p / J~) cof F~
             for i in range(3):
                 for j in range(3):
                     Peff[e, q, i, j] = r * Pmat[e, q, i, j] - c * _cof(Fans, e, q, i, j)
-        pbar[e] = pw / vol
 
 
 @njit_parallel
@@ -220,17 +211,7 @@ def stress_ans_tbar(Fans, frame, T, Tbar, ratio, Pmat, w, p, Peff):
         G = np.empty((3, 3))
         k = np.empty(3)
         m = np.empty(3)
-        vol = 0.0
-        pw = 0.0
-        for q in range(n_qp):
-            pf = 0.0
-            for i in range(3):
-                for j in range(3):
-                    pf += Pmat[e, q, i, j] * Fans[e, q, i, j]
-            p[e, q] = ratio[e, q] * pf / 3.0
-            pw += w[e, q] * p[e, q]
-            vol += w[e, q]
-        pbar = pw / vol
+        pbar = mean_pressure(Pmat, Fans, ratio, w, p, e)
         for q in range(n_qp):
             n2 = _thickness_direction(Fans, frame, e, q, G, k)
             for i in range(3):
