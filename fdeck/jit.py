@@ -36,8 +36,11 @@ def _cache_dir() -> str:
     if os.environ.get("NUMBA_CACHE_DIR"):
         return os.environ["NUMBA_CACHE_DIR"]
     base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
-    return str(base / "fdeck" / "numba" / _source_digest())
+    return str(base / "fdeck" / "numba" / BUILD)
 
+
+BUILD = _source_digest()
+"""Digest of the source files this process imported (read once): keys the kernel cache and tags checkpoints."""
 
 numba.config.CACHE_DIR = _cache_dir()
 

@@ -63,9 +63,9 @@ def deck_digests(deck, problem) -> dict:
             return any((("amplitude" in k) and v in ("ramp", "smooth")) or relative(v) for k, v in node.items())
         return isinstance(node, list) and any(relative(v) for v in node)
 
-    from fdeck.jit import _source_digest
+    from fdeck.jit import BUILD
 
-    return {"version": __version__, "build": _source_digest(), "base": h.hexdigest(),
+    return {"version": __version__, "build": BUILD, "base": h.hexdigest(),
             "steps": [_sha(json.dumps(st, sort_keys=True).encode()) for st in steps],
             "duration": problem.duration if relative(data) else None}
 

@@ -41,7 +41,7 @@ from __future__ import annotations
 import numpy as np
 
 from fdeck.engine.gather import gather_add, node_slots, node_sum
-from fdeck.jit import njit, njit_parallel, prange
+from fdeck.jit import njit, njit_inline, njit_parallel, prange
 
 WARM_START_ORDER = 2
 """Degree of the polynomial through the last cycles' accelerations that starts each solve (0: the last cycle's)."""
@@ -102,6 +102,15 @@ def _scaled(q, m, p):
             q[i, j] = m[i] * p[i, j]
 
 
+@njit_inline
+def _total(part):
+    """The chunks' partial sums added serially, in chunk order (the same bits on any thread count)."""
+    total = 0.0
+    for k in range(part.shape[0]):
+        total += part[k]
+    return total
+
+
 @njit_parallel
 def dot(a, b, w, part):
     """sum of a * b * w over (n_node, 3), by fixed chunks of CHUNK nodes summed serially (deterministic)."""
@@ -113,10 +122,7 @@ def dot(a, b, w, part):
             for j in range(3):
                 s += a[i, j] * b[i, j] * w[i, j]
         part[k] = s
-    total = 0.0
-    for k in range(n_chunk):
-        total += part[k]
-    return total
+    return _total(part)
 
 
 @njit_parallel
@@ -146,10 +152,7 @@ def _gather_dot(ye, ptr, slots, q, p, free, part):
             for j in range(3):
                 s += p[i, j] * q[i, j] * free[i, j]
         part[c] = s
-    total = 0.0
-    for c in range(n_chunk):
-        total += part[c]
-    return total
+    return _total(part)
 
 
 @njit_parallel
@@ -166,10 +169,7 @@ def _step(a, res, p, q, free, alpha, dinv, part):
                 res[i, j] += -alpha * q[i, j] * free[i, j]
                 s += res[i, j] * res[i, j] * dinv[i, j]
         part[c] = s
-    total = 0.0
-    for c in range(n_chunk):
-        total += part[c]
-    return total
+    return _total(part)
 
 
 @njit_parallel

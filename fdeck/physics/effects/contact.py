@@ -131,8 +131,8 @@ def query_mesh(x, nodes, P, T, face_n, edge_n, vert_n, rim_e, rim_v, lo, h, dims
 
     reach (k,) [mm]: the distance from the tool within which a node can feel a force (its offset plus the law's
     clearance); xq (k, 3), uq (k, 3): node position and tool translation at each node's last query; slack (k,) [mm]:
-    its distance to the nearest triangle then (negative inside the tool), less its reach. A node whose travel relative to the tool since then,
-    |x - xq| + |u - uq|, is below its slack is still out of reach: it is reported far (d = r, normal 0, no force,
+    its distance to the nearest triangle then (negative inside the tool), less its reach. A node whose travel
+    relative to the tool since then, |x - xq| + |u - uq|, is below its slack is still out of reach: it is reported far (d = r, normal 0, no force,
     exactly what a query gives beyond r) without a query. All updated in place; one node per iteration."""
     for i in prange(nodes.shape[0]):
         a = nodes[i]

@@ -54,7 +54,7 @@ import math
 import numpy as np
 
 from fdeck.compile.errors import CompileError
-from fdeck.jit import njit, njit_parallel, prange
+from fdeck.jit import njit, njit_inline, njit_parallel, prange
 from fdeck.physics.elements.hex8 import GAUSS_2, Hex8Group, shape_gradients_local
 from fdeck.physics.tensor import det3, inv3
 from fdeck.registry import FormulationKind, register_formulation
@@ -119,6 +119,24 @@ def _natural(A, G, H, i, j):
     return acc
 
 
+@njit_inline
+def _point_mean(Aq, w, e, out):
+    """out (3, 3) = sum_q w[e, q] Aq[q] / sum_q w[e, q]: the volume mean over element e's points of Aq (8, 3, 3)."""
+    vol = 0.0
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = 0.0
+    for q in range(Aq.shape[0]):
+        wq = w[e, q]
+        vol += wq
+        for i in range(3):
+            for j in range(3):
+                out[i, j] += wq * Aq[q, i, j]
+    for i in range(3):
+        for j in range(3):
+            out[i, j] /= vol
+
+
 @njit_parallel
 def kinematics_ans(x, conn, b, dN, w, dxi_s, index, Jinv, Gq, Gs, F, J, Fans, F0s, gs):
     """True F (n_el, 8, 3, 3), J = det F (n_el, 8) and the material's F~ (n_el, 8, 3, 3) with F~^T F~ = C~; keeps
@@ -130,7 +148,7 @@ def kinematics_ans(x, conn, b, dN, w, dxi_s, index, Jinv, Gq, Gs, F, J, Fans, F0
         C0 = np.zeros((3, 3))
         Cq = np.empty((8, 3, 3))
         Kq = np.empty((8, 3, 3))
-        Kbar = np.zeros((3, 3))
+        Kbar = np.empty((3, 3))
         C = np.empty((3, 3))
         W = np.empty((3, 3))
         D = np.zeros((3, 3))  # natural shear correction Delta, zero diagonal
@@ -164,7 +182,6 @@ def kinematics_ans(x, conn, b, dN, w, dxi_s, index, Jinv, Gq, Gs, F, J, Fans, F0
                     gs[e, s, r, c] = acc
             A[s] = (gs[e, s, 0, 0] * gs[e, s, 0, 1] + gs[e, s, 1, 0] * gs[e, s, 1, 1] + gs[e, s, 2, 0] * gs[e, s, 2, 1]
                     - _natural(C0, Gs[e, s], Gs[e, s], i, j))
-        vol = 0.0
         for q in range(8):
             Fq, Ji = F[e, q], Jinv[e, q]
             for i in range(3):
@@ -184,20 +201,14 @@ def kinematics_ans(x, conn, b, dN, w, dxi_s, index, Jinv, Gq, Gs, F, J, Fans, F0
                 d = A[index[q, k]] - _natural(W, Gq[e, q], Gq[e, q], i, j)
                 D[i, j] = d
                 D[j, i] = d
-            # K_q = Jinv^T D Jinv (T = D Jinv first), and its volume-weighted sum
+            # K_q = Jinv^T D Jinv (T = D Jinv first)
             for i in range(3):
                 for j in range(3):
                     T[i, j] = D[i, 0] * Ji[0, j] + D[i, 1] * Ji[1, j] + D[i, 2] * Ji[2, j]
-            wq = w[e, q]
-            vol += wq
             for i in range(3):
                 for j in range(3):
-                    kij = Ji[0, i] * T[0, j] + Ji[1, i] * T[1, j] + Ji[2, i] * T[2, j]
-                    Kq[q, i, j] = kij
-                    Kbar[i, j] += wq * kij
-        for i in range(3):
-            for j in range(3):
-                Kbar[i, j] /= vol
+                    Kq[q, i, j] = Ji[0, i] * T[0, j] + Ji[1, i] * T[1, j] + Ji[2, i] * T[2, j]
+        _point_mean(Kq, w, e, Kbar)
         for q in range(8):
             Fq = F[e, q]
             for i in range(3):
@@ -240,27 +251,20 @@ def forces_ans(F, Fans, Pans, dN, w, b, dxi_s, index, Jinv, Gq, Gs, F0s, gs, fe)
         B0 = np.zeros((3, 3))  # symmetric factor of the dF0 term (before F0)
         cs = np.zeros(6)
         Sq = np.empty((8, 3, 3))  # sym(S) at the points
-        Sbar = np.zeros((3, 3))
+        Sbar = np.empty((3, 3))
         for a in range(8):
             for i in range(3):
                 fe[e, a, i] = 0.0
-        vol = 0.0
         for q in range(8):
             inv3(Fans[e, q], Fi)
             Pq = Pans[e, q]
             for i in range(3):
                 for j in range(3):
                     S[i, j] = Fi[i, 0] * Pq[0, j] + Fi[i, 1] * Pq[1, j] + Fi[i, 2] * Pq[2, j]
-            wq = w[e, q]
-            vol += wq
             for i in range(3):
                 for j in range(3):
-                    sij = 0.5 * (S[i, j] + S[j, i])
-                    Sq[q, i, j] = sij
-                    Sbar[i, j] += wq * sij
-        for i in range(3):
-            for j in range(3):
-                Sbar[i, j] /= vol
+                    Sq[q, i, j] = 0.5 * (S[i, j] + S[j, i])
+        _point_mean(Sq, w, e, Sbar)
         for q in range(8):
             Fq, Ji, G = F[e, q], Jinv[e, q], Gq[e, q]
             # the modification K_q - K_bar sees the stress's deviation from its element mean, S - S_bar
