@@ -66,6 +66,8 @@ def deck_data(direction: str, L: float, dx: float = 5.0, form: str = "ans", nz: 
     sec["formulation"] = form
     if bending:
         sec["effects"] = [{"type": "fibre_bending", **bending}]
+        for step in data["steps"]:  # selective mass refuses fibre bending; a static solve has no mass anyway
+            step.pop("mass_scaling", None)
     return data
 
 

@@ -105,3 +105,45 @@ def test_bad_identify_file_gives_located_errors_and_exit_2(tmp_path):
     assert r.stderr.startswith(f"{spec}:{_line(spec, 'bars')}:") \
         and "materials has no key 'bars' (keys: bar)" in r.stderr, r.stderr
     assert not (tmp_path / "o").exists()
+
+
+def test_static_solver_fits_the_same_modulus_and_keys_its_own_runs(tmp_path):
+    """Requirement: with `solver: static` each run is an equilibrium by Newton (``study.static_run``) instead of a
+    damped dynamic run, and the fit is the same closed-form optimum E* as above within 1e-3 (the static bar gives
+    F L / (E A) to the St Venant-Kirchhoff law's 1e-5 at strain 1e-5, the rest is the optimiser's tolerance). A
+    static run is keyed apart from the dynamic run of the same deck (its own cache digest), reports its solver cost,
+    a continuation in a deck parameter (E from 1e5 down to the run's own) and a solve started from a previous
+    run's equilibrium (the seed identify gives a Jacobian's runs) land on the direct solve's answer within 1e-9
+    relative (all converged to rtol 1e-8 of the displacement), the seeded one with fewer force calls."""
+    from fdeck.deck.loader import load_file
+    from fdeck.study import variants as vmod
+    from fdeck.study.executor import Pool
+    from fdeck.study.identify import run_identify
+    from fdeck.study.static_run import run_static
+
+    u = synthetic()
+    spec = tmp_path / "ident.yaml"
+    spec.write_text(spec_text(u) + "solver: static\n")
+    with Pool(workers=1) as pool:
+        res = run_identify(spec, tmp_path / "static", pool, echo=lambda *a: None)
+    a = F * LENGTHS / (A * u)
+    e_star = np.sum(a * a) / np.sum(a)
+    assert res["status"] == "converged"
+    assert abs(res["parameters"][0]["value"] - e_star) <= 1e-3 * e_star, (res["parameters"][0]["value"], e_star)
+
+    data = load_file(BAR)[0]
+    dynamic = vmod.plan("d", {}, data, BAR.parent)
+    static = vmod.plan("s", {}, data, BAR.parent, {"continuation": None, "max_iterations": 20})
+    assert dynamic.digest != static.digest and dynamic.deck == static.deck
+
+    direct = run_static(data, BAR.parent, tmp_path / "direct", {"max_iterations": 20})
+    path = run_static(data, BAR.parent, tmp_path / "path", {"max_iterations": 20, "continuation": {
+        "path": "materials.bar.youngs_modulus", "values": [1.0e5, 3.0e4]}})
+    assert direct["status"] == path["status"] == "completed" and direct["solver"] == "static"
+    assert direct["force_calls"] > 0 and path["force_calls"] > direct["force_calls"]
+    u0, u1 = direct["measures"]["end_displacement"], path["measures"]["end_displacement"]
+    assert u0 == pytest.approx(F * 100.0 / (1.0e4 * A), rel=1e-4)
+    assert u1 == pytest.approx(u0, rel=1e-9)
+    seeded = run_static(data, BAR.parent, tmp_path / "seeded", {"max_iterations": 20}, seed=str(tmp_path / "direct"))
+    assert seeded["seeded"] and seeded["force_calls"] < direct["force_calls"]
+    assert seeded["measures"]["end_displacement"] == pytest.approx(u0, rel=1e-9)

@@ -71,7 +71,8 @@ def _problems_text(exc) -> str:
 
 
 def run_task(task: dict) -> dict:
-    """Validate and run one resolved deck (``task``: deck, base_dir, out_dir, name) through ``fdeck.run.execute``.
+    """Validate and run one resolved deck (``task``: deck, base_dir, out_dir, name, static) through
+    ``fdeck.run.execute``, or solve it statically (``study.static_run``) when ``task["static"]`` holds options.
     Returns the run's summary dict plus ``status`` (completed, failed, interrupted, check_failed, invalid, error)
     and ``message``; never raises for a problem of the deck or the run."""
     os.environ.setdefault("NUMBA_NUM_THREADS", "1")
@@ -94,6 +95,14 @@ def run_task(task: dict) -> dict:
         if errors:
             return {"status": "invalid", "message": "; ".join(errors), "wall_time": time.perf_counter() - t0}
         out = Path(task["out_dir"])
+        if task.get("static") is not None:
+            from fdeck.study.static_run import run_static
+
+            try:
+                return run_static(task["deck"], Path(task["base_dir"]), out, task["static"], task.get("seed"))
+            except CompileError as exc:
+                return {"status": "invalid", "message": "; ".join(f"{format_path(p)}: {m}" for p, m in exc.problems),
+                        "wall_time": time.perf_counter() - t0}
         try:
             _warm_up(run_mod, deck, Path(task["base_dir"]))
             code, summary = run_mod.execute(deck, Path(task["base_dir"]), out, task["name"], task["name"])
@@ -195,7 +204,7 @@ def run_cached(pool: Pool, planned: list, out_dir: Path, on_done=None) -> list[d
         else:
             todo[p.digest] = p
     tasks = [{"deck": p.deck, "base_dir": str(Path(p.base_dir).resolve()), "out_dir": str((runs / d).resolve()),
-              "name": p.name} for d, p in todo.items()]
+              "name": p.name, "static": p.solver, "seed": p.seed} for d, p in todo.items()]
     digests = list(todo)
 
     def done(i, res):

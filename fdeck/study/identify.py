@@ -95,6 +95,7 @@ class Fit:
         self.measured = np.array([p.value for p in points])
         self.runs = self.reused = 0
         self.evaluations: list[dict] = []
+        self.last_run: dict[str, str] = {}  # point -> folder of its latest completed run (static solves start there)
 
     def params(self, x: np.ndarray) -> np.ndarray:
         return self.p0 * x
@@ -104,7 +105,10 @@ class Fit:
         for k, pt in enumerate(self.points):
             data, folder = self.decks[pt.deck or self.spec.base]
             settings = {**self.spec.set, **pt.set, **{par.path: float(v) for par, v in zip(self.spec.parameters, p)}}
-            out.append(vmod.plan(f"{pt.name}", settings, data, folder))
+            q = vmod.plan(f"{pt.name}", settings, data, folder, self.spec.solver_options())
+            if q.solver is not None:
+                q.seed = self.last_run.get(pt.name)
+            out.append(q)
         return out
 
     def model(self, ps: list[np.ndarray]) -> list[np.ndarray]:
@@ -119,6 +123,8 @@ class Fit:
             vals = []
             for pt, q, res in zip(self.points, planned[i * len(self.points):], chunk):
                 v = quantity(res, self.spec.quantity)
+                if v is not None and i == 0:  # the first vector of a batch is the residual's or Jacobian's base
+                    self.last_run[pt.name] = res["run_dir"]
                 if v is None:
                     raise IdentifyError(f"point {pt.name} at {dict(zip([p.path for p in self.spec.parameters], ps[i]))}"
                                         f": run {res.get('run_dir')} gave no '{self.spec.quantity}' (status "

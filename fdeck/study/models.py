@@ -56,7 +56,38 @@ class Given(Card):
 Reference = Annotated[Union[Finest, Richardson, Given], Field(discriminator="type")]
 
 
-class StudySpec(Card):
+class Continuation(Card):
+    """Static solves along one deck parameter: each run is solved first at these values (each from the previous
+    equilibrium), then at the run's own value (a value that fails is halved geometrically, see
+    ``fdeck.engine.static.continuation``)."""
+
+    path: str = Field(description="Deck path of the parameter, e.g. materials.3weave.compression_ratio.")
+    values: list[float] = Field(min_length=1, description="Values before the run's own, in order (those on the "
+                                "run's side of its own value are skipped).")
+
+
+class StaticSolve(Card):
+    """How `solver: static` solves each run (``fdeck.engine.static``: load-stepped Newton, finite-difference
+    tangent; hexahedra, loads that do not follow the body, no tools)."""
+
+    continuation: Continuation | None = None
+    max_iterations: int = Field(20, ge=1, description="Newton iterations per load increment before it is halved.")
+
+
+class Solver(Card):
+    """Dynamic runs (the deck as `fdeck run` runs it) or static equilibria under the loads at the end of the last
+    step (seconds instead of minutes for a strip settling under its own weight; measures at the equilibrium)."""
+
+    solver: Literal["dynamic", "static"] = Field("dynamic", description="dynamic: `fdeck run`; static: equilibrium "
+                                                  "by Newton (fdeck.engine.static), measures at the answer.")
+    static: StaticSolve = Field(default_factory=StaticSolve, description="Options of `solver: static`.")
+
+    def solver_options(self) -> dict | None:
+        """None for dynamic runs, else the static options as plain data (part of every run's cache key)."""
+        return None if self.solver == "dynamic" else self.static.model_dump(mode="json")
+
+
+class StudySpec(Solver):
     """A study: a base deck, its variants, the quantities compared, the reference and the tolerance."""
 
     title: str = ""
@@ -133,7 +164,7 @@ class PresetOut(Card):
                                  "first parameter's path, materials.<name>...).")
 
 
-class IdentSpec(Card):
+class IdentSpec(Solver):
     """A fit of deck parameters to measured values of one quantity (scipy least_squares)."""
 
     title: str = ""

@@ -155,7 +155,7 @@ def load_study(path: Path):
     problems = check_spec(spec, locs, str(path), base_data)
     if problems:
         raise DeckError(problems)
-    planned = [vmod.plan(n, s, base_data, base_path.parent) for n, s in vmod.expand(spec)]
+    planned = [vmod.plan(n, s, base_data, base_path.parent, spec.solver_options()) for n, s in vmod.expand(spec)]
     return spec, planned
 
 

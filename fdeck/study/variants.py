@@ -27,6 +27,8 @@ class Planned:
     deck: dict
     base_dir: Path
     digest: str = field(default="")
+    solver: dict | None = None  # None: run dynamically; else the static options (``models.Solver``)
+    seed: str | None = None  # static: folder of a neighbouring run whose equilibrium starts this one (not in the key)
 
 
 def _short(value: Any) -> str:
@@ -74,9 +76,13 @@ def digest(deck: dict, base_dir: Path) -> str:
     return h.hexdigest()
 
 
-def plan(name: str, settings: dict[str, Any], base_data: dict, base_dir: Path) -> Planned:
+def plan(name: str, settings: dict[str, Any], base_data: dict, base_dir: Path, solver: dict | None = None) -> Planned:
+    """The run of ``settings`` over ``base_data``; a static solve (``solver``: its options) has its own digest."""
     deck = resolve(base_data, settings)
-    return Planned(name, settings, deck, base_dir, digest(deck, base_dir))
+    key = digest(deck, base_dir)
+    if solver is not None:
+        key = hashlib.sha256((key + json.dumps(solver, sort_keys=True)).encode()).hexdigest()
+    return Planned(name, settings, deck, base_dir, key, solver)
 
 
 def path_problems(filename: str, locs, base_data: dict, where: list[tuple[tuple, dict]]):

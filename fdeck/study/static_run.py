@@ -1,0 +1,92 @@
+"""One study or identification run solved for static equilibrium instead of run in time (``solver: static``).
+
+Why: a strip hanging under its own weight (the 3WEAVE cantilevers of [P]) takes 5-30 minutes to settle in an explicit
+run and seconds to a few minutes by Newton (``fdeck.engine.static``, whose answer equals a settled dynamic run to 1e-6
+in ``test_static_cantilever.py``). A fit that needs tens of runs per Jacobian can only afford the second.
+
+What it does: compiles the resolved deck, solves f_int(x) = f_ext under the loads and prescribed positions at the
+end of the last step (load-stepped Newton), optionally first along a continuation in one deck parameter (e.g. the
+fibre compression ratio 1 -> 0.3 -> ... -> the deck's own value, ``static.continuation``), then evaluates the deck's
+measures at the equilibrium (velocities zero) and writes ``summary.json`` in the shape the studies read (``status``,
+``measures``, ``wall_time``) plus the solver's cost (``force_calls``, ``newton_iterations``, ``increments``) and the
+final positions (``final_positions.npy``, (n_node, 3) [mm]). A run that does not converge is ``failed`` with the load
+factor or continuation value it reached: a row with its status, as for a dynamic run.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+
+from fdeck.study import deck_paths
+from fdeck.study.variants import resolve
+
+
+def run_static(deck_data: dict, base_dir: Path, out_dir: Path, options: dict, seed: str | None = None) -> dict:
+    """Solve ``deck_data`` (a resolved, validated deck as plain data) statically; ``options``: ``max_iterations``
+    (Newton iterations per load increment) and ``continuation`` (None or {path, values}). ``seed``: the run folder
+    of a neighbouring run (same mesh, nearby parameters, e.g. the base point of a Jacobian): its equilibrium is the
+    first guess, solved at full load at once, with the ordinary route as the fallback when that fails (the answer
+    is the same to the solver's tolerance, rtol 1e-8 of the displacement; only the cost changes). Returns the
+    summary dict (also written to out_dir/summary.json). CompileError propagates (the caller makes it ``invalid``)."""
+    from fdeck.compile.problem import compile_deck
+    from fdeck.deck.model import Deck
+    from fdeck.engine import static
+    from fdeck.io.summary import write_json_atomic
+
+    t0 = time.perf_counter()
+    out_dir.mkdir(parents=True, exist_ok=True)
+    cont = options.get("continuation")
+
+    def make(value):
+        data = deck_data if value is None else resolve(deck_data, {cont["path"]: value})
+        return compile_deck(Deck.model_validate(data), base_dir)
+
+    kw = {"max_iterations": options.get("max_iterations", 20)}
+    attempts, reached, converged = [], None, False
+    x0 = _seed_positions(seed)
+    problem = make(None)
+    if x0 is not None and x0.shape == problem.X.shape:
+        res = static.solve(problem, x0=x0, first=1.0, **kw)
+        attempts, converged = [(None, problem, res)], bool(res.converged)
+    if not converged and cont:
+        own = float(deck_paths.get(deck_data, cont["path"]))
+        before = [float(v) for v in cont["values"]]
+        path = [v for v in before if (v - own) * (before[0] - own) > 0.0] + [own]
+        attempts += static.continuation(lambda v: problem if v == own else make(v), path, **kw)
+        reached, problem, res = attempts[-1]
+        converged = bool(res.converged and reached == own)
+    elif not converged:
+        res = static.solve(problem, **kw)
+        attempts.append((None, problem, res))
+        converged = bool(res.converged)
+    summary = {
+        "status": "completed" if converged else "failed", "solver": "static",
+        "force_calls": sum(a[2].force_calls for a in attempts),
+        "newton_iterations": sum(a[2].iterations for a in attempts),
+        "increments": sum(a[2].increments for a in attempts), "seeded": x0 is not None,
+        "residual": float(res.residual), "elements": int(problem.n_element),
+    }
+    if converged:
+        zero = np.zeros_like(res.x)
+        summary["measures"] = {c: float(v) for m in problem.measures for c, v in zip(m.columns, m.evaluate(res.x, zero))}
+        np.save(out_dir / POSITIONS, res.x)
+    else:
+        summary["message"] = (f"static solve stopped at load factor {res.load_factor:.3g}" if reached is None else
+                              f"continuation in {cont['path']} stopped at {reached:.4g} (load factor "
+                              f"{res.load_factor:.3g})")
+    summary["wall_time"] = time.perf_counter() - t0
+    write_json_atomic(out_dir / "summary.json", summary)
+    return summary
+
+
+POSITIONS = "final_positions.npy"
+
+
+def _seed_positions(seed: str | None) -> np.ndarray | None:
+    """(n_node, 3) equilibrium positions saved by the run in folder ``seed``, or None."""
+    if seed is None or not (Path(seed) / POSITIONS).is_file():
+        return None
+    return np.load(Path(seed) / POSITIONS)
