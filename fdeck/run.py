@@ -339,10 +339,11 @@ def execute(deck, base: Path, out_dir: Path, name: str, deck_path: str, progress
     out.close()
     hist = np.array(result.history) if result.history else np.zeros((0, len(result.columns)))
     verdicts = checks_mod.evaluate(deck.checks, hist, result.columns, problem.duration)
-    summary = make_summary(deck_path, deck, problem, result, verdicts, t_compile, out.frames_written)
+    resumed = 0 if resume is None else resume["engine"]["result"]["cycles"]
+    summary = make_summary(deck_path, deck, problem, result, verdicts, t_compile, out.frames_written, resumed)
     summary["checkpoints"] = {"written": out.checkpoints, "time": out.checkpoint_time,
                               "last": None if out.checkpoint_path is None else out.checkpoint_path.name,
-                              "restarted_from_cycle": None if resume is None else resume["engine"]["result"]["cycles"]}
+                              "restarted_from_cycle": None if resume is None else resumed}
     if result.status == "failed":
         # the last frame the engine wrote on its schedule holds a state every monitor accepted; the frame written
         # at the failure (if any) shows the state that failed them
@@ -361,11 +362,13 @@ def execute(deck, base: Path, out_dir: Path, name: str, deck_path: str, progress
     return code, summary
 
 
-def make_summary(deck_path, deck, problem, result, verdicts, t_compile, frames) -> dict:
+def make_summary(deck_path, deck, problem, result, verdicts, t_compile, frames, resumed: int = 0) -> dict:
+    """summary.json's content. ``resumed``: the cycle a restart continued from; wall time and the timings are this
+    process's, so the cost per element-cycle divides them by the cycles run here (``cycles_this_run``)."""
     n_el = problem.n_element
     element_time = sum(v for k, v in result.timings.items() if k.startswith("section"))
     loop_time = sum(result.timings.values())
-    per = max(result.cycles, 1) * max(n_el, 1)
+    per = max(result.cycles - resumed, 1) * max(n_el, 1)
     last = dict(zip(result.columns, result.history[-1])) if result.history else {}
     return {
         "deck": str(deck_path),
@@ -376,6 +379,7 @@ def make_summary(deck_path, deck, problem, result, verdicts, t_compile, frames) 
         "elements": n_el,
         "nodes": problem.n_node,
         "cycles": result.cycles,
+        "cycles_this_run": result.cycles - resumed,
         "simulated_time": result.t,
         "wall_time": result.wall,
         "compile_time": t_compile,

@@ -2,7 +2,7 @@
 
     python studies/forming.py render RESULT_DIR OUT.png [--field shear_angle] [--view top|side] [--title T]
     python studies/forming.py force RESULT_DIR... OUT.png [--tool punch]   # punch force against stroke
-    python studies/forming.py paths PATH_NAME RESULT_DIR... OUT.png      # shear angle along a path, runs compared
+    python studies/forming.py paths PATH_NAME RESULT_DIR... OUT.png [--labels L...]  # shear along a path, runs compared
 
 `render` reads the last blank frame of a run's `.pvd` (the blank is part 0; tools are other parts), draws every
 element as the polygon of its nodes projected on the view plane (their 2-D convex hull), farthest first, so the
@@ -123,22 +123,23 @@ def read_path(result_dir, name: str) -> tuple[np.ndarray, np.ndarray]:
     return data["arc_length"], data["shear_angle"]
 
 
-def paths(name: str, result_dirs, png) -> list[float]:
-    """Plot the shear angle along path ``name`` for each run; returns max |angle - first run's| per other run
-    [deg], at the first run's samples."""
+def paths(name: str, result_dirs, png, labels=None) -> list[float]:
+    """Plot the shear angle along path ``name`` for each run (legend: ``labels``, default the folder names);
+    returns max |angle - first run's| per other run [deg], at the first run's samples."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    labels = labels or [Path(r).name for r in result_dirs]
     s0, a0 = read_path(result_dirs[0], name)
     fig, ax = plt.subplots(figsize=(6, 4))
-    ax.plot(s0, a0, label=Path(result_dirs[0]).name)
+    ax.plot(s0, a0, label=labels[0])
     out = []
-    for r in result_dirs[1:]:
+    for r, lab in zip(result_dirs[1:], labels[1:]):
         s, a = read_path(r, name)
         out.append(float(np.abs(np.interp(s0, s, a) - a0).max()))
-        ax.plot(s, a, label=f"{Path(r).name} (max diff {out[-1]:.2f} deg)")
+        ax.plot(s, a, label=f"{lab} (max diff {out[-1]:.2f} deg)")
     ax.set_xlabel(f"arc length along {name} [mm]")
     ax.set_ylabel("shear angle [deg]")
     ax.legend()
@@ -163,13 +164,14 @@ def main() -> None:
     p = sub.add_parser("paths")
     p.add_argument("name", help="path name (output.paths[].name)")
     p.add_argument("paths", nargs="+", help="result folders (the first is the reference), then the PNG")
+    p.add_argument("--labels", nargs="+", help="legend label per result folder (default: folder names)")
     a = ap.parse_args()
     if a.cmd == "render":
         print(render(a.result_dir, a.png, a.field, a.view, a.title))
     elif a.cmd == "force":
         force(a.paths[:-1], a.paths[-1], a.tool)
     else:
-        for r, d in zip(a.paths[1:-1], paths(a.name, a.paths[:-1], a.paths[-1])):
+        for r, d in zip(a.paths[1:-1], paths(a.name, a.paths[:-1], a.paths[-1], a.labels)):
             print(f"{r}: largest difference from {a.paths[0]} along {a.name}: {d:.2f} deg")
 
 

@@ -302,7 +302,7 @@ def test_damaged_newest_checkpoint_is_skipped(tmp_path):
 def test_max_wall_stops_with_a_checkpoint_and_restart_completes(tmp_path):
     """Requirement: ``--max-wall 0`` stops the run at its first cycle with exit 124, a checkpoint, the summary
     (status interrupted, one checkpoint counted); ``--restart`` then completes it bitwise equal to the
-    uninterrupted run."""
+    uninterrupted run, and reports its cost per element-cycle over the cycles it ran itself."""
     from typer.testing import CliRunner
 
     from fdeck.cli import app
@@ -318,9 +318,18 @@ def test_max_wall_stops_with_a_checkpoint_and_restart_completes(tmp_path):
     summary = json.loads((cut / "summary.json").read_text())
     assert summary["status"] == "interrupted" and summary["exit_code"] == 124
     assert summary["checkpoints"]["written"] == 1 and summary["checkpoints"]["time"] > 0
+    first = summary["cycles"]
     result = CliRunner().invoke(app, ["run", str(path), "-o", str(cut), "--restart"])
     assert result.exit_code == 0, result.output
     assert digest(cut) == digest(full)
+    # the cost of the continued run is per cycle run in this process: its timings over its own cycles (an
+    # identity, to round-off), not over every cycle since the start (which understated it on long restarted runs)
+    summary = json.loads((cut / "summary.json").read_text())
+    assert summary["checkpoints"]["restarted_from_cycle"] == first
+    assert summary["cycles_this_run"] == summary["cycles"] - first > 0
+    loop = sum(summary["time_per_effect"].values())
+    assert summary["us_per_element_cycle"] == pytest.approx(
+        1e6 * loop / (summary["cycles_this_run"] * summary["elements"]), rel=1e-12)
 
 
 def test_checkpoint_card_errors_are_located(tmp_path):
