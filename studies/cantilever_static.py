@@ -20,7 +20,8 @@ A row is converged when the residual (|f_int - f_ext| / |f_ext| on the free dofs
 below 1e-8 of the displacement; ``tol_change`` is the tip's change when that is re-solved with tolerances 10x
 (residual) and 100x (corrections) tighter.
 
-Not done yet: the least_squares identification of the bending parameters and the figure; campaign rows with
+The identification of the bending parameters runs through `fdeck identify` with `solver: static`
+(decks/studies/identify_3weave_*.yaml; the picture: studies/cantilever_fit.py). Campaign rows with
 converged = false are listed as such.
 
 Results are kept in studies/out/cantilever_static.json (one row per strip, formulation, element length, layers,

@@ -86,8 +86,8 @@ def _identify(spec, tmp_path):
 
 
 def test_bad_identify_file_gives_located_errors_and_exit_2(tmp_path):
-    """Requirement: an unknown key, a start value outside its bounds (schema stage) and a parameter path that is
-    not in the base deck (deck stage) are reported at their lines, exit 2, no traceback, nothing run."""
+    """Requirement: an unknown key, a start value outside its bounds (schema stage), a parameter path that is
+    not in the base deck and a preset asked for a fit of no material field (deck stage) are reported at their lines, exit 2, no traceback, nothing run."""
     spec = tmp_path / "bad.yaml"
     spec.write_text(spec_text(synthetic()).replace("lower: 1.0e3", "lower: 2.0e4")
                     .replace("quantity:", "parameters_2: 1\nquantity:"))
@@ -104,6 +104,12 @@ def test_bad_identify_file_gives_located_errors_and_exit_2(tmp_path):
     assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
     assert r.stderr.startswith(f"{spec}:{_line(spec, 'bars')}:") \
         and "materials has no key 'bars' (keys: bar)" in r.stderr, r.stderr
+    # a fitted value that is not a material field, and a preset of no material: located at `preset`
+    spec.write_text(spec_text(synthetic()).replace("materials.bar.youngs_modulus", "loads.0.force.0")
+                    .replace("initial: 1.0e4, lower: 1.0e3, upper: 1.0e5", "initial: 10.0, lower: 1.0, upper: 100.0"))
+    r = _identify(spec, tmp_path)
+    assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
+    assert r.stderr.startswith(f"{spec}:{_line(spec, 'preset:')}:") and "preset.material" in r.stderr, r.stderr
     assert not (tmp_path / "o").exists()
 
 

@@ -71,6 +71,15 @@ def load_ident(path: Path):
                                             "the base deck: give its start value as `initial`"))
             except deck_paths.PathError as exc:
                 problems.append(located(str(path), locs, ("parameters", i, "path"), str(exc)))
+    if spec.preset is not None:
+        name = _material_of(spec)
+        if name is None:
+            problems.append(located(str(path), locs, ("preset",), f"'{spec.parameters[0].path}' is not a material "
+                                    "field: name the material whose preset is written with `preset.material` (the "
+                                    "fitted values outside it go to the preset's header)"))
+        elif name not in vmod.resolve(base, spec.set).get("materials", {}):
+            problems.append(located(str(path), locs, ("preset", "material"), f"the base deck has no material "
+                                    f"'{name}'"))
     if problems:
         raise DeckError(problems)
     return spec, spec.data_points(), decks
