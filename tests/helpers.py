@@ -90,3 +90,26 @@ def stored_energy(source) -> float:
 def term(source, name: str) -> float:
     """Value of one named ledger term of a group or effect."""
     return dict(zip((t.name for t in source.terms), source.term_values()))[name]
+
+
+def once_per_session(tmp_path_factory, name: str, make):
+    """Run ``make(folder)`` (a subprocess run writing its results into ``folder``; it returns a CompletedProcess)
+    once per test session, whichever pytest-xdist worker asks first; the others wait for it and get the same
+    folder. Why: a module-scoped fixture runs once per *worker*, and with ``--dist worksteal`` the tests of one
+    module may land on both workers, which ran the coarse tetrahedron twice (2 x 100 s of CI). Returns (folder,
+    SimpleNamespace(returncode, stdout, stderr))."""
+    import fcntl
+    import json
+    from types import SimpleNamespace
+
+    root = tmp_path_factory.getbasetemp()
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        root = root.parent  # shared by the workers of this session
+    folder, record = root / f"shared_{name}", root / f"shared_{name}.json"
+    with open(root / f"shared_{name}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not record.is_file():
+            folder.mkdir(parents=True, exist_ok=True)
+            r = make(folder)
+            record.write_text(json.dumps({"returncode": r.returncode, "stdout": r.stdout, "stderr": r.stderr}))
+    return folder, SimpleNamespace(**json.loads(record.read_text()))

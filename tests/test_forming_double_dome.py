@@ -30,10 +30,13 @@ def _deck():
     return yaml.safe_load(COARSE.read_text())
 
 
-def _run(deck, out):
+def _run(deck, tmp_path_factory, name):
+    from helpers import once_per_session
+
     env = dict(os.environ, NUMBA_NUM_THREADS="1")
-    r = subprocess.run([sys.executable, "-m", "fdeck.cli", "run", str(deck), "-o", str(out)], cwd=ROOT, env=env,
-                       capture_output=True, text=True, timeout=600)
+    out, r = once_per_session(tmp_path_factory, name, lambda folder: subprocess.run(
+        [sys.executable, "-m", "fdeck.cli", "run", str(deck), "-o", str(folder)], cwd=ROOT, env=env,
+        capture_output=True, text=True, timeout=600))
     rows = list(csv.DictReader(open(out / "history.csv")))
     h = {k: np.array([float(row[k]) for row in rows]) for k in rows[0]}
     return r, h, out
@@ -41,12 +44,12 @@ def _run(deck, out):
 
 @pytest.fixture(scope="module")
 def run(tmp_path_factory):
-    return _run(COARSE, tmp_path_factory.mktemp("dd090"))
+    return _run(COARSE, tmp_path_factory, "dd090")
 
 
 @pytest.fixture(scope="module")
 def run45(tmp_path_factory):
-    return _run(COARSE.with_name("double_dome_45_coarse.yaml"), tmp_path_factory.mktemp("dd45"))
+    return _run(COARSE.with_name("double_dome_45_coarse.yaml"), tmp_path_factory, "dd45")
 
 
 def _passes_and_balances(run):

@@ -95,8 +95,10 @@ def test_holder_file_is_the_die_flange_turned_over():
 # -- the coarse run ---------------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def coarse_run(tmp_path_factory):
-    out = tmp_path_factory.mktemp("tetrahedron_coarse")
-    r = _cli("run", str(COARSE), "-o", str(out), timeout=1800)
+    from helpers import once_per_session
+
+    out, r = once_per_session(tmp_path_factory, "tetrahedron_coarse",
+                              lambda folder: _cli("run", str(COARSE), "-o", str(folder), timeout=1800))
     rows = list(csv.DictReader(open(out / "history.csv")))
     hist = {k: np.array([float(row[k]) for row in rows]) for k in rows[0]}
     path = list(csv.DictReader(open(out / "path_symmetry_line.csv")))
