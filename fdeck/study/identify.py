@@ -288,8 +288,9 @@ def text(result: dict) -> str:
                      + f"   (start {par['initial']:.6g})")
     if result["correlations"] is not None and len(result["parameters"]) > 1:
         lines.append("  correlations:")
+        width = max(len(par["path"]) for par in result["parameters"])  # whole paths: a cut one can be ambiguous
         for par, row in zip(result["parameters"], result["correlations"]):
-            lines.append(f"    {par['path'][-30:]:>30s} " + " ".join(f"{c:7.3f}" for c in row))
+            lines.append(f"    {par['path']:<{width}s} " + " ".join(f"{c:7.3f}" for c in row))
     lines.append(f"  {'point':<24s} {'measured':>12s} {'model':>12s} {'residual':>10s}")
     for pt in result["points"]:
         lines.append(f"  {pt['name'][:24]:<24s} {pt['measured']:12.6g} {pt['model']:12.6g} {pt['residual']:10.3e}")
