@@ -28,7 +28,8 @@ def load(folder: Path) -> dict:
 
 
 def table(results: list[dict]) -> str:
-    rows = ["| strip | fitted | L [mm] | measured [mm] | model [mm] | model / measured - 1 |", "|---|---|---|---|---|---|"]
+    rows = ["| strip | fitted | L [mm] | measured [mm] | model [mm] | model / measured - 1 |",
+            "|---|---|---|---|---|---|"]
     for r in results:
         for L, p in zip(r["lengths"], r["points"]):
             rows.append(f"| {r['strip']} | {r['label']} | {L:g} | {-p['measured']:.2f} | {-p['model']:.2f} | "
@@ -55,7 +56,8 @@ def main() -> None:
     for r in results:
         c = colours[r["strip"]]
         if r["strip"] not in shown:
-            ax.plot(r["lengths"], [-p["measured"] for p in r["points"]], "o", color=c, label=f"{r['strip']}, [P] measured")
+            ax.plot(r["lengths"], [-p["measured"] for p in r["points"]], "o", color=c,
+                    label=f"{r['strip']}, [P] measured")
             shown.add(r["strip"])
         ax.plot(r["lengths"], [-p["model"] for p in r["points"]], next(styles), color=c,
                 label=f"{r['strip']}: {r['label']} (rms {100 * r['rms_residual']:.0f} %)")

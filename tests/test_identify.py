@@ -87,7 +87,8 @@ def _identify(spec, tmp_path):
 
 def test_bad_identify_file_gives_located_errors_and_exit_2(tmp_path):
     """Requirement: an unknown key, a start value outside its bounds (schema stage), a parameter path that is
-    not in the base deck and a preset asked for a fit of no material field (deck stage) are reported at their lines, exit 2, no traceback, nothing run."""
+    not in the base deck and a preset asked for a fit of no material field (deck stage) are reported at their
+    lines, exit 2, no traceback, nothing run."""
     spec = tmp_path / "bad.yaml"
     spec.write_text(spec_text(synthetic()).replace("lower: 1.0e3", "lower: 2.0e4")
                     .replace("quantity:", "parameters_2: 1\nquantity:"))

@@ -214,7 +214,8 @@ def test_static_study_gives_the_cantilevers_equilibrium(tmp_path):
     spec = tmp_path / "study.yaml"
     spec.write_text(STUDY.split("variants:")[0].replace("set:\n", "set:\n  sections.0.formulation: ans\n")
                     + "quantities: [tip_deflection]\nsolver: static\n"
-                    f"reference: {{type: closed_form, values: {{tip_deflection: {-TIMOSHENKO!r}}}, source: Timoshenko}}\n"
+                    "reference: {type: closed_form, source: Timoshenko, "
+                    f"values: {{tip_deflection: {-TIMOSHENKO!r}}}}}\n"
                     "tolerance: 0.03\n")
     with Pool(workers=1) as pool:
         table = run_study(spec, tmp_path / "out", pool, echo=lambda *a: None)

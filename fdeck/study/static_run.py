@@ -46,9 +46,10 @@ def run_static(deck_data: dict, base_dir: Path, out_dir: Path, options: dict, se
 
     kw = {"max_iterations": options.get("max_iterations", 20)}
     attempts, reached, converged = [], None, False
-    x0 = _seed_positions(seed)
     problem = make(None)
-    if x0 is not None and x0.shape == problem.X.shape:
+    x0 = _seed_positions(seed)
+    x0 = x0 if x0 is not None and x0.shape == problem.X.shape else None  # another mesh's answer is no guess
+    if x0 is not None:
         res = static.solve(problem, x0=x0, first=1.0, **kw)
         attempts, converged = [(None, problem, res)], bool(res.converged)
     if not converged and cont:
@@ -71,7 +72,8 @@ def run_static(deck_data: dict, base_dir: Path, out_dir: Path, options: dict, se
     }
     if converged:
         zero = np.zeros_like(res.x)
-        summary["measures"] = {c: float(v) for m in problem.measures for c, v in zip(m.columns, m.evaluate(res.x, zero))}
+        summary["measures"] = {c: float(v) for m in problem.measures
+                               for c, v in zip(m.columns, m.evaluate(res.x, zero))}
         np.save(out_dir / POSITIONS, res.x)
     else:
         summary["message"] = (f"static solve stopped at load factor {res.load_factor:.3g}" if reached is None else
