@@ -92,12 +92,11 @@ def term(source, name: str) -> float:
     return dict(zip((t.name for t in source.terms), source.term_values()))[name]
 
 
-def once_per_session(tmp_path_factory, name: str, make):
-    """Run ``make(folder)`` (a subprocess run writing its results into ``folder``; it returns a CompletedProcess)
-    once per test session, whichever pytest-xdist worker asks first; the others wait for it and get the same
-    folder. Why: a module-scoped fixture runs once per *worker*, and with ``--dist worksteal`` the tests of one
-    module may land on both workers, which ran the coarse tetrahedron twice (2 x 100 s of CI). Returns (folder,
-    SimpleNamespace(returncode, stdout, stderr))."""
+def run_once_per_session(tmp_path_factory, name: str, deck: Path, timeout: float = 1800):
+    """``fdeck run DECK -o FOLDER`` (one numba thread) once per test session, whichever pytest-xdist worker asks
+    first; the others wait for it and get the same folder. Why: a module-scoped fixture runs once per *worker*, and
+    with ``--dist worksteal`` the tests of one module may land on both workers, which ran the coarse tetrahedron
+    twice (2 x 100 s of CI). Returns (folder, SimpleNamespace(returncode, stdout, stderr))."""
     import fcntl
     import json
     from types import SimpleNamespace
@@ -110,6 +109,8 @@ def once_per_session(tmp_path_factory, name: str, make):
         fcntl.flock(lock, fcntl.LOCK_EX)
         if not record.is_file():
             folder.mkdir(parents=True, exist_ok=True)
-            r = make(folder)
+            r = subprocess.run([sys.executable, "-m", "fdeck.cli", "run", str(deck), "-o", str(folder)], cwd=ROOT,
+                               env=dict(os.environ, NUMBA_NUM_THREADS="1"), capture_output=True, text=True,
+                               timeout=timeout)
             record.write_text(json.dumps({"returncode": r.returncode, "stdout": r.stdout, "stderr": r.stderr}))
     return folder, SimpleNamespace(**json.loads(record.read_text()))

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import csv
 import json
-import os
 import subprocess
 import sys
 
@@ -18,7 +17,7 @@ import numpy as np
 import pytest
 import yaml
 
-from tests.helpers import ROOT
+from tests.helpers import ROOT, run_once_per_session
 
 DECKS = sorted((ROOT / "decks" / "forming").glob("double_dome_*.yaml"))
 COARSE = ROOT / "decks" / "forming" / "double_dome_090_coarse.yaml"
@@ -31,12 +30,7 @@ def _deck():
 
 
 def _run(deck, tmp_path_factory, name):
-    from helpers import once_per_session
-
-    env = dict(os.environ, NUMBA_NUM_THREADS="1")
-    out, r = once_per_session(tmp_path_factory, name, lambda folder: subprocess.run(
-        [sys.executable, "-m", "fdeck.cli", "run", str(deck), "-o", str(folder)], cwd=ROOT, env=env,
-        capture_output=True, text=True, timeout=600))
+    out, r = run_once_per_session(tmp_path_factory, name, deck, timeout=600)
     rows = list(csv.DictReader(open(out / "history.csv")))
     h = {k: np.array([float(row[k]) for row in rows]) for k in rows[0]}
     return r, h, out

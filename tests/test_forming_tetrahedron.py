@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 import yaml
 
-from helpers import DECKS
+from helpers import DECKS, run_once_per_session
 
 FORMING = DECKS / "forming"
 TETRA = sorted(FORMING.glob("tetrahedron_*.yaml"))
@@ -95,10 +95,7 @@ def test_holder_file_is_the_die_flange_turned_over():
 # -- the coarse run ---------------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def coarse_run(tmp_path_factory):
-    from helpers import once_per_session
-
-    out, r = once_per_session(tmp_path_factory, "tetrahedron_coarse",
-                              lambda folder: _cli("run", str(COARSE), "-o", str(folder), timeout=1800))
+    out, r = run_once_per_session(tmp_path_factory, "tetrahedron_coarse", COARSE)
     rows = list(csv.DictReader(open(out / "history.csv")))
     hist = {k: np.array([float(row[k]) for row in rows]) for k in rows[0]}
     path = list(csv.DictReader(open(out / "path_symmetry_line.csv")))

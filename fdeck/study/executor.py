@@ -70,6 +70,13 @@ def _problems_text(exc) -> str:
     return "; ".join(f"{format_path(e['loc'])}: {e['msg']}" for e in exc.errors(include_url=False))
 
 
+def _compile_problems_text(exc) -> str:
+    """A CompileError's located problems on one line (a row's message)."""
+    from fdeck.deck.errors import format_path
+
+    return "; ".join(f"{format_path(p)}: {m}" for p, m in exc.problems)
+
+
 def run_task(task: dict) -> dict:
     """Validate and run one resolved deck (``task``: deck, base_dir, out_dir, name, static) through
     ``fdeck.run.execute``, or solve it statically (``study.static_run``) when ``task["static"]`` holds options.
@@ -101,13 +108,13 @@ def run_task(task: dict) -> dict:
             try:
                 return run_static(task["deck"], Path(task["base_dir"]), out, task["static"], task.get("seed"))
             except CompileError as exc:
-                return {"status": "invalid", "message": "; ".join(f"{format_path(p)}: {m}" for p, m in exc.problems),
+                return {"status": "invalid", "message": _compile_problems_text(exc),
                         "wall_time": time.perf_counter() - t0}
         try:
             _warm_up(run_mod, deck, Path(task["base_dir"]))
             code, summary = run_mod.execute(deck, Path(task["base_dir"]), out, task["name"], task["name"])
         except CompileError as exc:
-            return {"status": "invalid", "message": "; ".join(f"{format_path(p)}: {m}" for p, m in exc.problems),
+            return {"status": "invalid", "message": _compile_problems_text(exc),
                     "wall_time": time.perf_counter() - t0}
         summary = json.loads((out / "summary.json").read_text())  # the JSON form: what a re-run reads back
         if summary["status"] == "completed" and code == 3:
