@@ -2,6 +2,7 @@
 
     python studies/bias_extension.py            # runs decks/bias_extension_3weave*.yaml, then reports
     python studies/bias_extension.py --report   # report from results/ only
+    python studies/bias_extension.py --report --study results/bias_extension_formulations  # F-bar and ans_tbar
 
 Writes studies/out/bias_extension.md, docs/img/bias_extension.png and docs/img/bias_extension_shear_map.png.
 """
@@ -20,7 +21,25 @@ CASES = {"bias_extension_3weave": "diagonal W/6 (11.78 mm edges)",
          "bias_extension_3weave_fine": "diagonal W/20 (3.53 mm)"}
 
 
-def report() -> str:
+def study_runs(folder: Path) -> dict[str, Path]:
+    """Label -> run folder of every completed variant of a `fdeck study` of these decks (study.json's rows), e.g.
+    decks/studies/bias_extension_formulations.yaml: F-bar and `ans_tbar` on both meshes."""
+    import json
+
+    runs = {}
+    for row in json.loads((folder / "study.json").read_text())["rows"]:
+        if row["status"] != "completed":
+            continue
+        s = row["settings"]
+        fine = "n20" in s.get("mesh.file", "")
+        mesh = CASES["bias_extension_3weave_fine" if fine else "bias_extension_3weave"]
+        runs[f"{s.get('sections.0.formulation', 'fbar')}, {mesh}"] = Path(row["run_dir"])
+    return runs
+
+
+def report(runs: dict[str, Path] | None = None) -> str:
+    """Central shear angle against clamp travel for each run (label -> folder holding history.csv; default the two
+    shipped decks' results/ folders); writes studies/out/bias_extension.md and docs/img/bias_extension.png."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -28,13 +47,12 @@ def report() -> str:
 
     from fdeck.io.history import read_history
 
+    if runs is None:
+        runs = {f"fbar, {v}": ROOT / "results" / k for k, v in CASES.items()}
+    hist = {label: read_history(d / "history.csv") for label, d in runs.items() if (d / "history.csv").exists()}
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(10, 4))
-    lines = ["| clamp travel [mm] | pin-jointed [deg] | " + " | ".join(f"simulated, {v} [deg]" for k, v in CASES.items()
-                                                                    if (ROOT / "results" / k / "history.csv").exists())
-             + " |"]
+    lines = ["| clamp travel [mm] | pin-jointed [deg] | " + " | ".join(f"simulated, {k} [deg]" for k in hist) + " |"]
     lines.append("|" + "---|" * (lines[0].count("|") - 1))
-    hist = {k: read_history(ROOT / "results" / k / "history.csv") for k in CASES
-            if (ROOT / "results" / k / "history.csv").exists()}
     for d in (5, 10, 15, 20, 25, 30, 35, 40):
         row = [f"{d}"]
         first = next(iter(hist.values()))
@@ -43,8 +61,8 @@ def report() -> str:
             row.append(f"{np.interp(d, h['clamp_travel'], h['central_shear_angle']):.1f}")
         lines.append("| " + " | ".join(row) + " |")
     for k, h in hist.items():
-        a1.plot(h["clamp_travel"], h["central_shear_angle"], label=f"fdeck, {CASES[k]}")
-        a2.plot(h["clamp_travel"], h["reaction_GRIP_HIGH_y"], label=f"fdeck, {CASES[k]}")
+        a1.plot(h["clamp_travel"], h["central_shear_angle"], label=f"fdeck, {k}")
+        a2.plot(h["clamp_travel"], h["reaction_GRIP_HIGH_y"], label=f"fdeck, {k}")
     h = next(iter(hist.values()))
     a1.plot(h["clamp_travel"], h["pin_jointed_shear_angle"], "k--", label="pin-jointed net")
     a1.set_xlabel("clamp travel [mm]")
@@ -101,12 +119,13 @@ def shear_map(case: str = "bias_extension_3weave_fine") -> None:
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--report", action="store_true")
+    ap.add_argument("--study", type=Path, help="report the variants of this `fdeck study` folder instead")
     args = ap.parse_args()
     if not args.report:
         for k in CASES:
             subprocess.run([sys.executable, "-m", "fdeck.cli", "run", str(ROOT / "decks" / f"{k}.yaml"), "-o",
                             str(ROOT / "results" / k)], check=False)
-    print(report())
+    print(report(study_runs(args.study) if args.study else None))
     shear_map()
 
 

@@ -450,3 +450,75 @@ def test_mass_scaling_to_a_target_step_counts_the_bending_stiffness():
     r = solver.run(p, solver.Sink())
     assert r.status == "completed"
     assert r.dt_min == pytest.approx(target, rel=0.03)
+
+
+# ------------------------------------------------------------------------------------------------------------------
+# a fabric's own bending law, carried by its material card or preset
+# ------------------------------------------------------------------------------------------------------------------
+
+LAWS = {"thickness": 2.0, "warp": {"D1": 20.0, "D2": 800.0}, "weft": {"table": [[0, 0], [0.01, 0.1], [0.1, 0.4]]}}
+
+
+def fabric_strip(where: str) -> dict:
+    """The clamped strip of ``strip_deck`` in the 3WEAVE fabric (published preset), its end pushed 6 mm sideways in
+    4e-4 s (about 140 cycles of 3e-6 s), with the bending laws LAWS given by the section (``where="section"``) or by
+    the material card."""
+    d = strip_deck()
+    d["materials"] = {"fab": {"type": "fabric_hyper", "preset": "3weave"}}
+    d["sections"][0]["material"] = "fab"
+    d["steps"] = [{"duration": 4.0e-4, "max_cycles": 1000}]
+    if where == "section":
+        d["sections"][0]["effects"] = [{"type": "fibre_bending", **LAWS}]
+    else:
+        del d["sections"][0]["effects"]
+        d["materials"]["fab"]["fibre_bending"] = LAWS
+    return d
+
+
+@pytest.mark.unit
+def test_bending_carried_by_the_material_or_its_preset_is_the_section_effect(tmp_path, monkeypatch):
+    """Requirement: a `fabric_hyper` material (card or preset) that carries `fibre_bending` builds on its sections
+    exactly the effect the section would list, located at the material: the runs are bitwise equal (history and
+    final positions; same arrays, same kernels, so any difference is a bug, no tolerance). The preset route: a
+    copy of the 3WEAVE preset with the laws added, named by the deck."""
+    import shutil
+
+    import yaml
+
+    from fdeck.cards import fabric_hyper
+
+    runs = {}
+    for where in ("section", "material", "preset"):
+        d = fabric_strip("material" if where == "preset" else where)
+        if where == "preset":
+            shutil.copy(fabric_hyper.PRESET_DIR / "3weave.yaml", tmp_path / "3weave.yaml")
+            fitted = yaml.safe_load((fabric_hyper.PRESET_DIR / "3weave.yaml").read_text())
+            (tmp_path / "fitted.yaml").write_text(yaml.safe_dump({**fitted, "fibre_bending": LAWS}))
+            monkeypatch.setattr(fabric_hyper, "PRESET_DIR", tmp_path)
+            d["materials"]["fab"] = {"type": "fabric_hyper", "preset": "fitted"}
+        problem, result, h = run_data(d)
+        (eff,) = [e for e in problem.effects if e.name.startswith("fibre_bending")]
+        at_section = ("sections", 0, "effects", 0)
+        assert eff.path == (at_section if where == "section" else ("materials", "fab", "fibre_bending"))
+        assert result.status == "completed" and h["bending_energy"][-1] > 0
+        runs[where] = (np.array(result.history), result.final_positions)
+    for where in ("material", "preset"):
+        assert np.array_equal(runs[where][0], runs["section"][0])
+        assert np.array_equal(runs[where][1], runs["section"][1])
+
+
+@pytest.mark.unit
+def test_bending_given_by_both_material_and_section_is_a_located_error():
+    """Requirement: fibre bending from the material and from the section is not silently resolved: a CompileError
+    at the section's effect naming the material."""
+    from fdeck.compile.errors import CompileError
+    from fdeck.compile.problem import compile_deck
+    from fdeck.deck.model import Deck
+
+    d = fabric_strip("material")
+    d["sections"][0]["effects"] = [{"type": "fibre_bending", **LAWS}]
+    with pytest.raises(CompileError) as exc:
+        compile_deck(Deck.model_validate(d))
+    (path, message), = exc.value.problems
+    assert path == ("sections", 0, "effects", 0)
+    assert "given twice" in message and "materials.fab.fibre_bending" in message

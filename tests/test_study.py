@@ -63,6 +63,25 @@ def test_deck_paths_read_set_and_refuse_paths_that_lead_nowhere():
             dp.check_settable(data, bad)
 
 
+def test_grid_names_are_file_names_even_for_paths_and_mappings():
+    """Requirement: a grid over mesh files or mapping values names its variants with what the frame series accept
+    (the variant name is the series name): a path stands as its stem, other characters become '_'. Before, a grid
+    over `mesh.file` failed every variant at its first frame ("series name ... must be a plain file name")."""
+    import re
+
+    from fdeck.io.frames import _check_name
+    from fdeck.study.models import _NAME
+    from fdeck.study.variants import grid_name
+
+    cases = {"file=bias_w100_n20,formulation=ans_tbar": {"mesh.file": "meshes/bias_w100_n20.inp",
+                                                          "sections.0.formulation": "ans_tbar"},
+             "clamp=_box_[[-10,0,0],[0,5,2.54]]_": {"mesh.node_sets.clamp": {"box": [[-10, 0, 0], [0, 5, 2.54]]}},
+             "file=plate": {"mesh.file": "C:\\meshes\\plate.msh"}}
+    for expected, settings in cases.items():
+        name = grid_name(settings)
+        assert name == expected and _check_name(name) == name and re.match(_NAME, name)
+
+
 def test_richardson_recovers_the_limit_and_order_of_a_power_law():
     """Requirement: Richardson extrapolation of f(h) = f0 + c h^p sampled at h, h/r, h/r^2 returns f0 and p (to
     1e-9 relative: only rounding of three subtractions), and refuses oscillating or diverging sequences."""

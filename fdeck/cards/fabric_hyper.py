@@ -11,6 +11,7 @@ from typing import Annotated, ClassVar, Literal, Union
 from pydantic import Field, FiniteFloat, model_validator
 
 from fdeck.cards import presets
+from fdeck.cards.fibre_bending import FibreBending, FibreBendingLaws
 from fdeck.deck.base import Card
 from fdeck.registry import CardEntry, register_card
 
@@ -168,7 +169,7 @@ def available_presets() -> list[str]:
 
 def load_preset(name: str) -> dict:
     """Card fields of preset ``name`` (a fresh dict). Unknown name or unknown key -> ValueError."""
-    return presets.load(PRESET_DIR, name, {"density", "compression_ratio", *MODES}, "fabric_hyper")
+    return presets.load(PRESET_DIR, name, {"density", "compression_ratio", "fibre_bending", *MODES}, "fabric_hyper")
 
 
 def _mode_field(what: str):
@@ -201,6 +202,16 @@ class FabricHyper(presets.PresetMaterial):
     compression_ratio: float | None = Field(
         None, ge=0.0, description="Fibre compressive / tensile quadratic stiffness [-] ([P]: 0.01); from the preset "
         "when omitted.")
+    fibre_bending: FibreBendingLaws | None = Field(
+        None, description="The fabric's own fibre bending laws ([B] cure 2; the body of a `fibre_bending` section "
+        "effect without `type`): built on every hexahedral section of this material as if its `effects` listed them "
+        "(a section listing its own as well is an error). Given in the deck, it replaces the preset's whole entry.")
+
+
+    def section_effects(self) -> list:
+        if self.fibre_bending is None:
+            return []
+        return [("fibre_bending", FibreBending(type="fibre_bending", **dict(self.fibre_bending)))]
 
 
 register_card(CardEntry("fabric_hyper", FabricHyper, "material"))

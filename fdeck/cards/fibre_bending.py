@@ -56,12 +56,11 @@ def _check_table(table) -> None:
         raise ValueError("every moment in `table` is zero: this family would not bend")
 
 
-class FibreBending(Card):
-    """Local fibre bending stiffness ([B] cure 2): a moment-curvature law per fibre family, on the section's
-    hexahedra, curvature from neighbouring elements (fibre-aligned meshes). Energy in history column
-    `bending_energy`; its stiffness enters the stable time step."""
+class FibreBendingLaws(Card):
+    """The moment laws of a fabric's fibre families and the specimen thickness they are per: the body of a
+    `fibre_bending` section effect, and the `fibre_bending` field of a `fabric_hyper` material (a fabric's own
+    bending, e.g. from a preset identified on cantilever tests, applied on every section of that material)."""
 
-    type: Literal["fibre_bending"]
     thickness: FiniteFloat = Field(gt=0.0, description="Thickness T of the fabric specimen whose moment per unit "
                                    "width M(chi) the laws give [mm]; the energy density is int M dchi / T, so a "
                                    "sheet of thickness T bent to chi stores int M dchi per unit area.")
@@ -75,4 +74,14 @@ class FibreBending(Card):
         if self.warp is None and self.weft is None:
             raise ValueError("give a moment law for `warp`, `weft` or both")
         return self
+
+
+class FibreBending(FibreBendingLaws):
+    """Local fibre bending stiffness ([B] cure 2): a moment-curvature law per fibre family, on the section's
+    hexahedra, curvature from neighbouring elements (fibre-aligned meshes). Energy in history column
+    `bending_energy`; its stiffness enters the stable time step."""
+
+    type: Literal["fibre_bending"]
+
+
 register_card(CardEntry("fibre_bending", FibreBending, "effect", "section"))

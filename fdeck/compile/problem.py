@@ -334,6 +334,22 @@ def _build(kind, card, ctx, problems: list, effects: list) -> None:
         effects.append(effect)
 
 
+def _material_effects(deck: Deck, i: int, own: list, problems: list) -> list:
+    """(path, card) of the section add-ons section i's material carries (``MaterialCard.section_effects``, e.g. a
+    fabric's own fibre bending from an identified preset), located at the material's field; one the section lists
+    itself as well is a problem, not a guess of which one to keep."""
+    name = deck.sections[i].material
+    out = []
+    for field, card in deck.materials[name].section_effects():
+        clash = [path for path, c in own if c.type == card.type]
+        if clash:
+            problems.append((clash[0], f"'{card.type}' is given twice: here and by material '{name}' "
+                             f"(materials.{name}.{field}, its card or preset); keep one"))
+        else:
+            out.append((("materials", name, field), card))
+    return out
+
+
 def compile_deck(deck: Deck, base: Path = Path(".")) -> Problem:
     """Build every array the engine needs. Raises CompileError listing every geometric or set problem."""
     mesh = load_mesh(deck, base)
@@ -344,8 +360,10 @@ def compile_deck(deck: Deck, base: Path = Path(".")) -> Problem:
     ctx.base = base
     effects, problems = [], []
     for i, sec in enumerate(deck.sections):  # section add-ons act on that section's groups
-        for j, card in enumerate(getattr(sec, "effects", [])):
-            ctx.path = ("sections", i, "effects", j)
+        cards = [(("sections", i, "effects", j), card) for j, card in enumerate(getattr(sec, "effects", []))]
+        cards += _material_effects(deck, i, cards, problems)
+        for path, card in cards:
+            ctx.path = path
             for g in groups:
                 if g.section_index == i:
                     ctx.group = g

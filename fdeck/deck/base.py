@@ -20,3 +20,8 @@ class MaterialCard(Card):
     """Base of every material card."""
 
     density: Density
+
+    def section_effects(self) -> list:
+        """(field name, section effect card) of the add-ons this material carries, built on every section of it
+        as if the section listed them (e.g. a fabric's own fibre bending from its preset); none by default."""
+        return []

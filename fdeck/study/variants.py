@@ -10,8 +10,9 @@ import copy
 import hashlib
 import itertools
 import json
+import re
 from dataclasses import dataclass, field
-from pathlib import Path
+from pathlib import Path, PurePath
 from typing import Any
 
 from fdeck.study import deck_paths
@@ -38,12 +39,16 @@ def _short(value: Any) -> str:
 
 def grid_name(settings: dict[str, Any]) -> str:
     """``{mesh.block.divisions: [40, 1, 4]}`` -> ``divisions=[40,1,4]`` (the last key part of each path that is not
-    an index, joined by ',')."""
+    an index, joined by ','). A file path stands as its stem (``mesh.file: meshes/bias_w100_n6.inp`` ->
+    ``file=bias_w100_n6``), and any character outside letters, digits and ``_.=,[]+-`` becomes '_' (braces,
+    colons, spaces of a mapping value): the name also names the run's frame series, a file name."""
     out = []
     for path, value in settings.items():
         keys = [p for p in deck_paths.parts(path) if not isinstance(p, int)]
-        out.append(f"{keys[-1] if keys else path}={_short(value)}")
-    return ",".join(out)
+        is_path = isinstance(value, str) and re.search(r"[/\\]", value)
+        text = PurePath(re.split(r"[/\\]", value)[-1]).stem if is_path else _short(value)
+        out.append(f"{keys[-1] if keys else path}={text}")
+    return re.sub(r"[^A-Za-z0-9_.=,\[\]+-]", "_", ",".join(out))
 
 
 def expand(spec) -> list[tuple[str, dict[str, Any]]]:
