@@ -5,9 +5,11 @@
     fdeck identify decks/studies/identify_3weave_weft_bilinear.yaml -o results/identify_3weave_weft_bilinear
     python studies/cantilever_fit.py results/identify_3weave_warp results/identify_3weave_weft \
         results/identify_3weave_weft_bilinear docs/img/cantilever_3weave_fit.png
+    fdeck identify decks/studies/identify_3weave_bending.yaml -o results/identify_3weave_bending   # both strips
+    python studies/cantilever_fit.py results/identify_3weave_bending docs/img/cantilever_3weave_preset.png --table
 
 Each result folder's identify.json holds, per data point, the measured tip deflection and the model's at the fitted
-parameters (the strip length is the point's name, L<mm>). The picture draws the measurements as markers and each
+parameters (the strip length is the point's name, L<mm>, or warp_L<mm> / weft_L<mm> in a joint fit of both). The picture draws the measurements as markers and each
 fit's model answers as a line through its points, labelled with the fitted values and the rms relative residual;
 `--table` prints the same as a markdown table.
 """
@@ -19,12 +21,27 @@ import json
 from pathlib import Path
 
 
-def load(folder: Path) -> dict:
+def load(folder: Path) -> list[dict]:
+    """One entry per strip of the fit in ``folder``: a fit of one strip (points named L<mm>) or a joint fit of
+    both (points named warp_L<mm>, weft_L<mm>: decks/studies/identify_3weave_bending.yaml), each with its lengths,
+    points, the parameters of its fibre family as a label, and its own rms relative residual."""
+    import math
+
     res = json.loads((Path(folder) / "identify.json").read_text())
-    res["lengths"] = [float(p["name"].lstrip("L")) for p in res["points"]]
-    res["strip"] = "warp" if "warp" in res["identify"] else "weft"
-    res["label"] = ", ".join(f"{p['path'].split('effects.0.')[-1]} = {p['value']:.4g}" for p in res["parameters"])
-    return res
+    whole = "warp" if "warp" in res["identify"] else "weft"
+    out = []
+    for strip in ("warp", "weft"):
+        points = [p for p in res["points"]
+                  if p["name"].split("_")[0] == strip or ("_" not in p["name"] and strip == whole)]
+        if not points:
+            continue
+        pars = [p for p in res["parameters"] if f".{strip}." in p["path"]] or res["parameters"]
+        label = ", ".join(f"{p['path'].split('effects.0.')[-1].split('fibre_bending.')[-1]} = {p['value']:.4g}"
+                          for p in pars)
+        rms = math.sqrt(sum((p["model"] / p["measured"] - 1) ** 2 for p in points) / len(points))
+        out.append({"strip": strip, "points": points, "label": label, "rms_residual": rms,
+                    "lengths": [float(p["name"].split("_")[-1].lstrip("L")) for p in points]})
+    return out
 
 
 def table(results: list[dict]) -> str:
@@ -48,7 +65,7 @@ def main() -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    results = [load(f) for f in args.folders]
+    results = [r for f in args.folders for r in load(f)]
     fig, ax = plt.subplots(figsize=(7, 4.5))
     colours = {"warp": "tab:blue", "weft": "tab:red"}
     shown = set()

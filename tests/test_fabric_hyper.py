@@ -484,6 +484,20 @@ def test_presets_shipped():
     assert 1e3 <= ratio <= 1e4
 
 
+def test_cantilever_fit_preset_is_the_published_law_plus_the_fitted_fibre_bending():
+    """Requirement (issue 9): the identified preset `3weave_cantilever_fit` keeps [P]'s published 3WEAVE law (every
+    packed parameter and the density bitwise equal to the `3weave` preset's: the fit moved none of them) and adds
+    the fabric's own fibre bending for both families, which `3weave` does not carry; its sections then build the
+    `fibre_bending` effect from the material."""
+    fit, pub = card("3weave_cantilever_fit"), card("3weave")
+    assert np.array_equal(fh.pack(fit), fh.pack(pub)) and fit.density == pub.density
+    assert pub.fibre_bending is None and pub.section_effects() == []
+    assert fit.fibre_bending.thickness == 2.54 and fit.fibre_bending.warp.D1 > 0
+    assert [row[0] for row in fit.fibre_bending.weft.table] == [0.0, 5e-4, 5e-3]
+    ((field, effect),) = fit.section_effects()
+    assert field == "fibre_bending" and effect.type == "fibre_bending" and effect.weft == fit.fibre_bending.weft
+
+
 def test_deck_overrides_preset_per_mode():
     base, over = params("3weave"), params("3weave", transverse_shear_warp={"form": "quadratic", "K": 2.0},
                                           density=2e-9, compression_ratio=0.05)

@@ -294,8 +294,8 @@ def text(result: dict) -> str:
     lines.append(f"  {'point':<24s} {'measured':>12s} {'model':>12s} {'residual':>10s}")
     for pt in result["points"]:
         lines.append(f"  {pt['name'][:24]:<24s} {pt['measured']:12.6g} {pt['model']:12.6g} {pt['residual']:10.3e}")
-    lines.append(f"  rms residual {result['rms_residual']:.4g}; {result['runs']} runs ({result['runs_reused']} reused "
-                 f"from the cache), {result['wall_time']:.1f} s wall")
+    lines.append(f"  rms residual {result['rms_residual']:.4g}; {result['runs']} runs made, {result['runs_reused']} "
+                 f"more answers taken from the cache, {result['wall_time']:.1f} s wall")
     if result.get("preset"):
         lines.append(f"preset written: {result['preset']}")
     return "\n".join(lines)
