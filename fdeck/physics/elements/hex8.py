@@ -22,6 +22,7 @@ import numpy as np
 
 from fdeck.compile.errors import CompileError
 from fdeck.engine.ledger import DISSIPATED, STORED, Term
+from fdeck.physics.elements import diagnostics
 from fdeck.jit import njit_inline, njit_parallel, prange
 from fdeck.registry import FormulationKind, register_formulation
 
@@ -427,13 +428,8 @@ class Hex8Group:
             out["J_bar"] = self.Jbar[idx]
         if self.has_hourglass:
             out["hourglass_energy_density"] = self.e_hg[idx] / self.V0[idx]
-        if self.material.diagnose is not None:
-            names = self.material.diagnostics
-            vals = np.zeros((len(idx), len(names)))
-            for k, e in enumerate(idx):
-                for q in range(F.shape[1]):
-                    vals[k] += wn[k, q] * self.material.diagnose(F[k, q], self.frame[e], self.params[e])
-            out.update({n: vals[:, i] for i, n in enumerate(names)})
+        src = np.broadcast_to(idx[:, None], wn.shape)  # every point reads its element's frame and law
+        out.update(diagnostics.averaged(self.material, F, self.frame, self.params, src, wn))
         return out
 
 

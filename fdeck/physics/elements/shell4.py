@@ -78,6 +78,7 @@ import numpy as np
 from fdeck.compile.errors import CompileError
 from fdeck.engine.gather import gather_add
 from fdeck.engine.ledger import PART, STORED, Term
+from fdeck.physics.elements import diagnostics
 from fdeck.jit import njit, njit_parallel, prange
 from fdeck.registry import FormulationKind, register_formulation
 
@@ -903,16 +904,11 @@ class ShellGroup:
             out["bending_energy_density"] = self.e_b[idx] / V0
         if "transverse_shear_energy" in parts:
             out["transverse_shear_energy_density"] = self.e_s[idx] / V0
-        if self.material.diagnose is not None:
-            names = self.material.diagnostics
-            vals = np.zeros((len(idx), len(names)))
-            n_z = len(self.z)
-            for k, e in enumerate(idx):
-                for g in range(4):
-                    for l in range(n_z):
-                        vals[k] += wn[k, g, l] * self.material.diagnose(F[k, g, l], self.frame[4 * e + g],
-                                                                        self.params[4 * e + g])
-            out.update({n: vals[:, i] for i, n in enumerate(names)})
+        n, n_z = len(idx), len(self.z)
+        # point (corner g, level l) of element e reads the frame and law of its corner, row 4 e + g
+        src = np.repeat(4 * np.asarray(idx)[:, None] + np.arange(4)[None, :], n_z, axis=1)
+        out.update(diagnostics.averaged(self.material, F.reshape(n, 4 * n_z, 3, 3), self.frame, self.params, src,
+                                        wn.reshape(n, 4 * n_z)))
         return out
 
 
