@@ -186,6 +186,7 @@ def run(deck: Path = typer.Argument(..., help="Deck file."),
     """Run a deck: frames (VTU/PVD, XDMF/HDF5), history.csv and summary.json in the result folder."""
     from fdeck.compile.errors import CompileError
     from fdeck.deck.errors import format_problems
+    from fdeck.io.outdir import OutdirError
     from fdeck.run import RestartError, execute, timing_table
 
     if checkpoint is not None and not restart:
@@ -207,6 +208,10 @@ def run(deck: Path = typer.Argument(..., help="Deck file."),
     except RestartError as exc:
         stop()
         _err(f"{deck}: cannot restart: {exc}")
+        raise typer.Exit(2)
+    except OutdirError as exc:
+        stop()
+        _err(f"{deck}: {exc}")
         raise typer.Exit(2)
     stop()
     claim.finish()

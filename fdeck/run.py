@@ -302,9 +302,10 @@ def execute(deck, base: Path, out_dir: Path, name: str, deck_path: str, progress
     RestartError when ``restart`` (a checkpoint file, or True/"" for the newest valid one in ``out_dir``) cannot be
     used. ``max_wall`` [s]: stop with a checkpoint (exit 124) once the run has taken that long. ``compiled``:
     (problem, compile time [s]) of this deck compiled by the caller and not yet run (``fdeck run`` compiles before it
-    touches the result folder, to refuse absurd decks), so it is not compiled twice."""
+    touches the result folder, to refuse absurd decks), so it is not compiled twice. OutdirError when another run
+    is writing into ``out_dir`` (``io.outdir.writing``)."""
     from fdeck.compile.problem import compile_deck
-    from fdeck.io.summary import write_json_atomic
+    from fdeck.io.outdir import writing
 
     if compiled is not None:
         problem, t_compile = compiled
@@ -312,6 +313,14 @@ def execute(deck, base: Path, out_dir: Path, name: str, deck_path: str, progress
         t_compile = time.perf_counter()
         problem = compile_deck(deck, base)
         t_compile = time.perf_counter() - t_compile
+    with writing(out_dir):  # one writer per result folder (OutdirError when another run is writing there)
+        return _execute(deck, problem, t_compile, out_dir, name, deck_path, progress, echo, restart, max_wall)
+
+
+def _execute(deck, problem, t_compile, out_dir, name, deck_path, progress, echo, restart, max_wall):
+    """``execute`` once the deck is compiled and the folder's write lock is held."""
+    from fdeck.io.summary import write_json_atomic
+
     digests = deck_digests(deck, problem)
     resume = None if restart is None or restart is False else find_restart(out_dir, restart, digests, echo)
     out = Outputs(problem, out_dir, name, progress, digests, resume)

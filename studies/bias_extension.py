@@ -22,18 +22,23 @@ CASES = {"bias_extension_3weave": "diagonal W/6 (11.78 mm edges)",
 
 
 def study_runs(folder: Path) -> dict[str, Path]:
-    """Label -> run folder of every completed variant of a `fdeck study` of these decks (study.json's rows), e.g.
-    decks/studies/bias_extension_formulations.yaml: F-bar and `ans_tbar` on both meshes."""
+    """Label -> run folder of every variant of a `fdeck study` of these decks, e.g.
+    decks/studies/bias_extension_formulations.yaml: F-bar and `ans_tbar` on both meshes. From study.json's completed
+    rows; a study stopped before it wrote study.json is read from its run folders (the frame series carries the
+    variant's name), partial runs included: the table leaves out what a run has not reached."""
     import json
 
+    def label(settings: dict) -> str:
+        fine = "n20" in settings.get("file", settings.get("mesh.file", ""))
+        form = settings.get("formulation", settings.get("sections.0.formulation", "fbar"))
+        return f"{form}, {CASES['bias_extension_3weave_fine' if fine else 'bias_extension_3weave']}"
+
+    if (folder / "study.json").is_file():
+        rows = json.loads((folder / "study.json").read_text())["rows"]
+        return {label(r["settings"]): Path(r["run_dir"]) for r in rows if r["status"] == "completed"}
     runs = {}
-    for row in json.loads((folder / "study.json").read_text())["rows"]:
-        if row["status"] != "completed":
-            continue
-        s = row["settings"]
-        fine = "n20" in s.get("mesh.file", "")
-        mesh = CASES["bias_extension_3weave_fine" if fine else "bias_extension_3weave"]
-        runs[f"{s.get('sections.0.formulation', 'fbar')}, {mesh}"] = Path(row["run_dir"])
+    for pvd in sorted(folder.glob("runs/*/*.pvd")):  # series name: file=bias_w100_n6,formulation=fbar
+        runs[label(dict(kv.split("=", 1) for kv in pvd.stem.split(",")))] = pvd.parent
     return runs
 
 
@@ -57,8 +62,9 @@ def report(runs: dict[str, Path] | None = None) -> str:
         row = [f"{d}"]
         first = next(iter(hist.values()))
         row.append(f"{np.interp(d, first['clamp_travel'], first['pin_jointed_shear_angle']):.1f}")
-        for h in hist.values():
-            row.append(f"{np.interp(d, h['clamp_travel'], h['central_shear_angle']):.1f}")
+        for h in hist.values():  # a partial run (an interrupted study) leaves the travel it did not reach out
+            reached = d <= h["clamp_travel"].max() + 1e-9
+            row.append(f"{np.interp(d, h['clamp_travel'], h['central_shear_angle']):.1f}" if reached else "–")
         lines.append("| " + " | ".join(row) + " |")
     for k, h in hist.items():
         a1.plot(h["clamp_travel"], h["central_shear_angle"], label=f"fdeck, {k}")

@@ -31,7 +31,7 @@ def test_averaged_diagnostics_equal_the_point_by_point_mean(kind, card, k):
     n = 6
     F = np.eye(3) + 0.05 * rng.standard_normal((n, k, 3, 3))
     frame = rotations(rng, 2 * n)  # rows the points pick from, as a shell's corners or a hexahedron's elements
-    params = np.broadcast_to(p, (2 * n, len(p)))
+    params = np.tile(p, (2 * n, 1))  # contiguous rows: the signature the material tests compile too
     src = rng.integers(0, 2 * n, (n, k))
     w = rng.random((n, k))
     w /= w.sum(axis=1, keepdims=True)

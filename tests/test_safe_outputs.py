@@ -181,3 +181,23 @@ def test_results_without_marker_recognised_by_their_summary(tmp_path):
     assert run(a, out).exit_code == 0
     listed = sorted(re.findall(r'file="([^"]+)"', (out / "a.pvd").read_text()))
     assert sorted(p.name for p in out.glob("a_*.vtu")) == listed and (out / "notes.txt").exists()
+
+
+def test_a_folder_another_run_is_writing_is_refused_untouched(tmp_path):
+    """Requirement: while a run writes into a folder (its lock held, ``outdir.writing``), `fdeck run` of the same
+    deck into it exits 2 naming the writer and changes nothing there (reference: the folder's bytes before);
+    once the writer is done the run goes ahead. Before, a study re-run beside a worker left over from its killed
+    predecessor let two processes write one history.csv (NUL-filled rows)."""
+    import os
+
+    from fdeck.io.outdir import writing
+
+    a = write(tmp_path / "a.yaml", bar(2))
+    out = tmp_path / "out"
+    assert run(a, out).exit_code == 0
+    before = tree(out)
+    with writing(out):
+        r = run(a, out)
+        assert r.exit_code == 2 and f"pid {os.getpid()}" in r.output and "is writing into" in r.output
+        assert tree(out) == {**before, ".fdeck-lock": tree(out)[".fdeck-lock"]}
+    assert run(a, out).exit_code == 0

@@ -24,16 +24,46 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from fdeck.io.summary import atomic_write_text
 
 MARKER = ".fdeck-run"
+LOCK = ".fdeck-lock"
 
 
 class OutdirError(Exception):
     """The run may not write into this folder; ``str(exc)`` says why and what to do."""
+
+
+@contextmanager
+def writing(out: Path):
+    """Hold ``out``'s write lock while a run writes there: an exclusive ``flock`` on ``out/.fdeck-lock`` (holding the
+    writer's pid), released when the run ends or its process dies (the kernel drops it). A second run into a folder
+    another one is writing is refused with an OutdirError naming the writer, instead of two processes writing one
+    history file: a study re-run beside a worker left over from its killed predecessor wrote NUL-filled rows so."""
+    import fcntl
+
+    out.mkdir(parents=True, exist_ok=True)
+    f = open(out / LOCK, "a+", encoding="utf-8")
+    try:
+        fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        f.seek(0)
+        holder = f.read().strip() or "a process"
+        f.close()
+        raise OutdirError(f"another fdeck run ({holder}) is writing into {out}: wait for it to end, stop it, or "
+                          "choose another result folder") from None
+    f.seek(0)
+    f.truncate()
+    f.write(f"pid {os.getpid()}")
+    f.flush()
+    try:
+        yield
+    finally:
+        f.close()  # closing the file releases the lock
 
 
 def deck_digest(deck_path: Path) -> str:
@@ -46,7 +76,7 @@ def _snapshot(out: Path) -> dict[str, tuple[int, int]]:
     if not out.is_dir():
         return {}
     return {e.name: (e.stat().st_ino, e.stat().st_mtime_ns) for e in os.scandir(out)
-            if e.is_file(follow_symlinks=False) and e.name != MARKER}
+            if e.is_file(follow_symlinks=False) and e.name not in (MARKER, LOCK)}
 
 
 def _owner(out: Path) -> tuple[str | None, list[str]]:
