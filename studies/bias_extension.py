@@ -37,9 +37,10 @@ def study_runs(folder: Path) -> dict[str, Path]:
         rows = json.loads((folder / "study.json").read_text())["rows"]
         return {label(r["settings"]): Path(r["run_dir"]) for r in rows if r["status"] == "completed"}
     runs = {}
-    for pvd in sorted(folder.glob("runs/*/*.pvd")):  # series name: file=bias_w100_n6,formulation=fbar
+    for pvd in folder.glob("runs/*/*.pvd"):  # series name: file=bias_w100_n6,formulation=fbar
         runs[label(dict(kv.split("=", 1) for kv in pvd.stem.split(",")))] = pvd.parent
-    return runs
+    order = [f"{f}, {m}" for m in CASES.values() for f in ("fbar", "ans_tbar")]
+    return dict(sorted(runs.items(), key=lambda kv: order.index(kv[0]) if kv[0] in order else len(order)))
 
 
 def report(runs: dict[str, Path] | None = None) -> str:
@@ -63,7 +64,7 @@ def report(runs: dict[str, Path] | None = None) -> str:
         first = next(iter(hist.values()))
         row.append(f"{np.interp(d, first['clamp_travel'], first['pin_jointed_shear_angle']):.1f}")
         for h in hist.values():  # a partial run (an interrupted study) leaves the travel it did not reach out
-            reached = d <= h["clamp_travel"].max() + 1e-9
+            reached = d <= h["clamp_travel"].max() + 1e-3  # within a micron of the travel asked
             row.append(f"{np.interp(d, h['clamp_travel'], h['central_shear_angle']):.1f}" if reached else "–")
         lines.append("| " + " | ".join(row) + " |")
     for k, h in hist.items():
