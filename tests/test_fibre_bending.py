@@ -481,8 +481,6 @@ def test_bending_carried_by_the_material_or_its_preset_is_the_section_effect(tmp
     exactly the effect the section would list, located at the material: the runs are bitwise equal (history and
     final positions; same arrays, same kernels, so any difference is a bug, no tolerance). The preset route: a
     copy of the 3WEAVE preset with the laws added, named by the deck."""
-    import shutil
-
     import yaml
 
     from fdeck.cards import fabric_hyper
@@ -491,7 +489,6 @@ def test_bending_carried_by_the_material_or_its_preset_is_the_section_effect(tmp
     for where in ("section", "material", "preset"):
         d = fabric_strip("material" if where == "preset" else where)
         if where == "preset":
-            shutil.copy(fabric_hyper.PRESET_DIR / "3weave.yaml", tmp_path / "3weave.yaml")
             fitted = yaml.safe_load((fabric_hyper.PRESET_DIR / "3weave.yaml").read_text())
             (tmp_path / "fitted.yaml").write_text(yaml.safe_dump({**fitted, "fibre_bending": LAWS}))
             monkeypatch.setattr(fabric_hyper, "PRESET_DIR", tmp_path)
