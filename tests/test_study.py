@@ -242,3 +242,67 @@ def test_static_study_gives_the_cantilevers_equilibrium(tmp_path):
     assert all(rows[g]["status"] == "completed" and rows[g].get("cycles") is None for g in GRID)
     w = [-rows[g]["answers"]["tip_deflection"] for g in GRID]
     assert w == pytest.approx([TIMOSHENKO] * 3, rel=0.03), (w, TIMOSHENKO)
+
+
+def test_killed_study_takes_its_pool_workers_with_it(tmp_path):
+    """Requirement: when the study process is killed (SIGKILL: no clean-up of its own can run), its pool workers
+    stop too, instead of running their variants on into the result folders a re-run would use (found when an
+    orphaned worker and a re-run's worker wrote one history.csv). Reference: the worker's pid, read from the write
+    lock of the run folder it holds (``io.outdir.writing``), must vanish within 30 s of the kill (a run notices
+    SIGTERM at its next cycle, well below a second here; 30 s covers a loaded CI machine), and the lock must then be
+    free."""
+    import fcntl
+    import signal
+    import time
+
+    study = tmp_path / "long.yaml"
+    study.write_text(f"base: {DECKS / 'cantilever.yaml'}\n"
+                     "set: {output.frames: 1, output.history_points: 10, steps.0.duration: 100.0}\n"
+                     "variants: [{name: long, set: {}}]\nquantities: [energy_balance]\n"
+                     "reference: {type: finest}\ntolerance: 0.01\n")  # ~10^7 cycles: it outlives the test by far
+    out = tmp_path / "out"
+    proc = subprocess.Popen([sys.executable, "-m", "fdeck.cli", "study", str(study), "-o", str(out), "--workers",
+                             "1"], cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline, worker, lock = time.time() + 240, None, None
+        while worker is None and time.time() < deadline and proc.poll() is None:
+            for lock in out.glob("runs/*/.fdeck-lock"):
+                text = lock.read_text().split()
+                if len(text) == 2 and text[1].isdigit():
+                    worker = int(text[1])
+            time.sleep(0.5)
+        assert worker is not None, f"no variant started (study exit {proc.poll()})"
+        assert worker != proc.pid
+        proc.send_signal(signal.SIGKILL)
+        proc.wait(timeout=30)
+        deadline = time.time() + 30
+        while time.time() < deadline and Path(f"/proc/{worker}").exists() and \
+                "zombie" not in Path(f"/proc/{worker}/status").read_text(errors="replace"):
+            time.sleep(0.2)
+        alive = Path(f"/proc/{worker}").exists() and "zombie" not in Path(f"/proc/{worker}/status").read_text()
+        assert not alive, f"pool worker {worker} still runs 30 s after its study was killed"
+        with open(lock, "a+") as f:  # the kernel released the dead worker's lock
+            fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+
+
+def test_static_run_refuses_a_folder_another_run_is_writing(tmp_path):
+    """Requirement: a static study run takes the same one-writer lock as `fdeck run` (``io.outdir.writing``): into
+    a folder whose lock another run holds it raises OutdirError naming the writer and writes nothing there
+    (reference: the folder's file list before); with the lock free it solves (status completed)."""
+    import yaml
+
+    from fdeck.io.outdir import OutdirError, writing
+    from fdeck.study.static_run import run_static
+
+    data = yaml.safe_load((DECKS / "cantilever.yaml").read_text())
+    data["mesh"]["block"]["divisions"] = [5, 1, 1]
+    out = tmp_path / "run"
+    with writing(out):
+        before = sorted(p.name for p in out.iterdir())
+        with pytest.raises(OutdirError, match=f"pid {os.getpid()}"):
+            run_static(data, DECKS, out, {})
+        assert sorted(p.name for p in out.iterdir()) == before
+    assert run_static(data, DECKS, out, {})["status"] == "completed"

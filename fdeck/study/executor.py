@@ -32,6 +32,30 @@ RESULT = "result.json"
 
 def _init_worker():
     os.environ["NUMBA_NUM_THREADS"] = "1"
+    _die_with_parent()
+
+
+def _die_with_parent() -> None:
+    """Ask Linux to send this pool worker SIGTERM when the study process that spawned it dies (prctl
+    PR_SET_PDEATHSIG): a killed study must not leave workers running its variants (they would burn the cores and
+    hold their run folders; SIGTERM lets a run stop as it does for ``fdeck run``, keeping its frames). Elsewhere a
+    no-op. The pool spawns its workers from the study's main thread, whose exit is what the kernel watches. A run
+    stopped so returns normally; ``run_task`` then ends the orphaned worker (``_exit_if_orphaned``), which would
+    otherwise wait for its next task forever (it holds both ends of the pool's queues itself)."""
+    import multiprocessing
+    import signal
+    import sys
+
+    if not sys.platform.startswith("linux"):
+        return
+    import ctypes
+
+    libc = ctypes.CDLL(None, use_errno=True)
+    PR_SET_PDEATHSIG = 1
+    libc.prctl(PR_SET_PDEATHSIG, int(signal.SIGTERM), 0, 0, 0)
+    parent = multiprocessing.parent_process()
+    if parent is not None and os.getppid() != parent.pid:  # the parent died before the request was made
+        os.kill(os.getpid(), signal.SIGTERM)
 
 
 _WARM: set[str] = set()  # skeletons of the decks this process has already warmed up
@@ -77,7 +101,24 @@ def _compile_problems_text(exc) -> str:
     return "; ".join(f"{format_path(p)}: {m}" for p, m in exc.problems)
 
 
+def _exit_if_orphaned() -> None:
+    """End this process (exit 143, as for SIGTERM) when it is a pool worker whose parent has died."""
+    import multiprocessing
+
+    parent = multiprocessing.parent_process()
+    if parent is not None and not parent.is_alive():
+        os._exit(143)
+
+
 def run_task(task: dict) -> dict:
+    """``_run_task`` in a pool worker that ends itself when its study process died during the run."""
+    try:
+        return _run_task(task)
+    finally:
+        _exit_if_orphaned()
+
+
+def _run_task(task: dict) -> dict:
     """Validate and run one resolved deck (``task``: deck, base_dir, out_dir, name, static) through
     ``fdeck.run.execute``, or solve it statically (``study.static_run``) when ``task["static"]`` holds options.
     Returns the run's summary dict plus ``status`` (completed, failed, interrupted, check_failed, invalid, error)

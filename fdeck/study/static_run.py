@@ -30,14 +30,23 @@ def run_static(deck_data: dict, base_dir: Path, out_dir: Path, options: dict, se
     of a neighbouring run (same mesh, nearby parameters, e.g. the base point of a Jacobian): its equilibrium is the
     first guess, solved at full load at once, with the ordinary route as the fallback when that fails (the answer
     is the same to the solver's tolerance, rtol 1e-8 of the displacement; only the cost changes). Returns the
-    summary dict (also written to out_dir/summary.json). CompileError propagates (the caller makes it ``invalid``)."""
+    summary dict (also written to out_dir/summary.json). CompileError propagates (the caller makes it ``invalid``);
+    so does ``io.outdir.OutdirError`` when another run is writing into out_dir (one writer per folder, as for
+    ``fdeck run``)."""
+    from fdeck.io.outdir import writing
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    with writing(out_dir):
+        return _run_static(deck_data, base_dir, out_dir, options, seed)
+
+
+def _run_static(deck_data: dict, base_dir: Path, out_dir: Path, options: dict, seed: str | None) -> dict:
     from fdeck.compile.problem import compile_deck
     from fdeck.deck.model import Deck
     from fdeck.engine import static
     from fdeck.io.summary import write_json_atomic
 
     t0 = time.perf_counter()
-    out_dir.mkdir(parents=True, exist_ok=True)
     cont = options.get("continuation")
 
     def make(value):
