@@ -16,6 +16,10 @@ class Subcycling(Card):
 
     levels: int = Field(4, ge=2, le=8, description="Number of step sizes: nodes run at dt, 2 dt, ..., "
                         "2^(levels-1) dt, dt the smallest element step times dt_safety [-].")
+    block_elements: int = Field(256, ge=1, description="Largest number of elements in one block: each section is "
+                                "split into spatially compact blocks, each updated at the rate of its fastest "
+                                "element, so a local stiffening slows only its own blocks; smaller blocks follow it "
+                                "more closely for a few microseconds of call overhead per block and update [-].")
 
 
 register_card(CardEntry("subcycling", Subcycling, "effect", "step"))

@@ -130,6 +130,7 @@ def build_groups(deck: Deck, mesh: MeshArrays) -> list:
     problems, groups, recipes = [], [], []
     owner = {t: np.full(len(c), -1) for t, c in mesh.cells.items()}
     top = max((s.subcycling.levels - 1 for s in deck.steps if s.subcycling is not None), default=0)
+    block = min((s.subcycling.block_elements for s in deck.steps if s.subcycling is not None), default=0)
     for i, sec in enumerate(deck.sections):
         path = ("sections", i)
         if sec.elements not in mesh.element_sets:
@@ -192,7 +193,7 @@ def build_groups(deck: Deck, mesh: MeshArrays) -> list:
     if problems:
         raise CompileError(problems)
     if top:
-        groups = subcycle.split_groups(groups, recipes, len(mesh.X), top)
+        groups = subcycle.split_groups(groups, recipes, mesh.X, top, block)
     return groups
 
 
@@ -271,8 +272,13 @@ def rest_dt(group, rho: np.ndarray, effects=()) -> np.ndarray:
     for e in effects:
         if e.group is group:
             own = e.rest_dt(rho)
-            if own is not None:
-                dt = np.minimum(dt, own)
+        elif any(p is group for p in getattr(e.group, "parts", ())):  # over the subcycling blocks of a section
+            own = e.rest_dt(e.group.with_part_rho(group, rho))
+            own = None if own is None else own[e.group.slice(group)]
+        else:
+            continue
+        if own is not None:
+            dt = np.minimum(dt, own)
     return dt
 
 
@@ -364,10 +370,9 @@ def compile_deck(deck: Deck, base: Path = Path(".")) -> Problem:
         cards += _material_effects(deck, i, cards, problems)
         for path, card in cards:
             ctx.path = path
-            for g in groups:
-                if g.section_index == i:
-                    ctx.group = g
-                    _build(registry.EFFECTS[card.type], card, ctx, problems, effects)
+            for unit in subcycle.section_units(groups, i):  # a group, or the view of its subcycling blocks
+                ctx.group = unit
+                _build(registry.EFFECTS[card.type], card, ctx, problems, effects)
     ctx.group = None
     for section in ("boundary", "loads"):
         for i, card in enumerate(getattr(deck, section)):

@@ -17,7 +17,8 @@ An effect is built by the compiler only when the deck names it. Per cycle n -> n
 5. ``stable_dt()``: the effect's own limit on the time step [s] (inf when none).
 
 A section add-on names the element ``group`` it acts on; if it has a stiffness of its own, ``rest_dt(rho)`` gives
-the rest steps (n_el,) [s] of that group's elements with it, for mass scaling and ``fdeck info`` (None otherwise).
+the rest steps (n_el,) [s] of that group's elements with it, for mass scaling and ``fdeck info``, and
+``element_dt()`` their current steps after its ``stable_dt`` (for subcycling's levels; None otherwise).
 
 Ledger: ``terms`` (tuple of ``engine.ledger.Term``) and ``term_values()`` give the effect's named energies and
 history columns (see ``engine.ledger``). Checkpoints save an effect's mutable state by walking its attributes
@@ -64,6 +65,9 @@ class Effect:
         pass
 
     def rest_dt(self, rho: np.ndarray) -> np.ndarray | None:
+        return None
+
+    def element_dt(self) -> np.ndarray | None:
         return None
 
     def check_plan(self, plans) -> list[str]:

@@ -18,10 +18,18 @@ dynamics equations", Comput. Mech. 18, 1996):
 * an element never runs above its own step: the largest step among its nodes is 2^(m_e) h with m_e = max_a n_a
   <= b_e; at every synchronised time (the end of a major cycle, 2^L minor steps) the levels are re-derived from the
   current element steps ("regrouping": an element drops to a lower level as soon as its step falls below its bin's,
-  and returns, at most to its compile-time level, when it recovers); the groups' membership is fixed at compile time,
-  so a group containing an element that now needs a faster rate runs at that rate as a whole (no state is moved
-  between groups); every group update in between measures the ratio of the step its slowest node uses to its own
-  current step (``step_ratio_max``, must stay below 1) and counts the updates where it exceeded dt_safety.
+  and rises again when it recovers or when the smallest step elsewhere falls); the groups' membership is fixed at
+  compile time, so a group containing an element that now needs a faster rate runs at that rate as a whole (no
+  state is moved between groups). So that a local stiffening (a crushed region, a kink stiffened by fibre bending)
+  slows only its neighbourhood, each section is split at compile time into spatially compact blocks of at most
+  ``block_elements`` elements (recursive coordinate bisection of the centroids) as well as by level: a block runs at
+  the rate of its fastest element. Every group update in between measures the ratio of the step its slowest node
+  uses to its own current step (``step_ratio_max``, must stay below 1) and counts the updates where it exceeded
+  dt_safety;
+* section add-ons with a stiffness of their own (fibre bending: hinges joining neighbouring elements) act on the
+  whole section, seen through a ``SectionView`` of its blocks; they are evaluated at every minor step (their forces
+  are then fresh at every node that is kicked), and their element steps (``Effect.element_dt``) lower the levels of
+  the elements they stiffen.
 
 Why this scheme: it is explicit at every node (no interface solve), needs no change to the element kernels (BYM's
 interpolation is the drift of the central-difference update itself), and its stability for nodal partitions is
@@ -35,7 +43,7 @@ measures it: history rows (and frames) are taken only at synchronised times, whe
 (stored energies); the work of external forces and reactions is the trapezoidal rule over each node's own step.
 
 Not supported (refused at compile time by ``effects.subcycling``): shells and rotations, non-hexahedral groups,
-selective mass scaling, contact and moving tools, section effects, damping and bulk viscosity, checkpoints/restart.
+selective mass scaling, contact and moving tools, damping and bulk viscosity, checkpoints/restart.
 """
 
 from __future__ import annotations
@@ -88,37 +96,135 @@ def subset_recipe(build, name, section, X, conn, ids, kind, params, orient, rho,
     """A function (sel, level) -> element group of the elements ``sel`` (local indices) of one section, built by the
     formulation's own hook exactly as ``compile.problem.build_groups`` builds the whole section."""
 
-    def make(sel: np.ndarray, level: int):
+    def make(sel: np.ndarray, label: str):
         # the orientation's own class (compile.orientation, which the engine does not import: one direction)
         o = type(orient)(orient.reference[sel], orient.warp_angle[sel], orient.normal)
-        g = build(f"{name}/level{level}", section, X, conn[sel], ids[sel], kind, np.array(params[sel]), o,
-                  rho[sel], ctype)
+        g = build(f"{name}/{label}", section, X, conn[sel], ids[sel], kind, np.array(params[sel]), o, rho[sel], ctype)
         g.element_index, g.section_index = idx[sel], section_index
+        g.subset = sel  # (n_el,) its elements' indices in the section's elements of this cell type
         return g
 
     return make
 
 
-def split_groups(groups: list, recipes: list, n_node: int, top: int) -> list:
-    """Groups split by update level (one group per section and level present); a group with one level stays as it
-    is, as do groups that are not hexahedra (the subcycling card refuses those)."""
-    _, _, update, _ = static_plan(groups, n_node, top)
+def spatial_blocks(centroids: np.ndarray, sel: np.ndarray, size: int) -> list[np.ndarray]:
+    """``sel`` (k,) split into spatially compact blocks of at most ``size`` indices by recursive coordinate
+    bisection of ``centroids`` (n, 3): halve at the median of the longest extent until small enough. Deterministic
+    (stable sorts); each block is sorted."""
+    if len(sel) <= size:
+        return [np.sort(sel)]
+    c = centroids[sel]
+    order = np.argsort(c[:, int(np.argmax(c.max(axis=0) - c.min(axis=0)))], kind="stable")
+    half = len(sel) // 2
+    return spatial_blocks(centroids, sel[order[:half]], size) + spatial_blocks(centroids, sel[order[half:]], size)
+
+
+def split_groups(groups: list, recipes: list, X: np.ndarray, top: int, block: int) -> list:
+    """Groups split by update level and into spatial blocks of at most ``block`` elements (``spatial_blocks``); a
+    group with one level and no more elements than a block stays as it is, as do groups that are not hexahedra (the
+    subcycling card refuses those)."""
+    _, _, update, _ = static_plan(groups, len(X), top)
     out = []
     for g, make, u in zip(groups, recipes, update):
         levels = np.unique(u)
-        if not g.solid or len(levels) == 1:
+        if not g.solid or (len(levels) == 1 and len(g.conn) <= block):
             out.append(g)
             continue
-        out += [make(np.flatnonzero(u == k), int(k)) for k in levels]
+        centroids = X[g.conn].mean(axis=1)
+        for k in levels:
+            parts = spatial_blocks(centroids, np.flatnonzero(u == k), block)
+            out += [make(sel, f"level{k}" + (f"/block{b}" if len(parts) > 1 else "")) for b, sel in enumerate(parts)]
     return out
 
 
-def regroup(sub, groups: list, dt_min: float) -> bool:
-    """Re-derive the levels from the elements' current steps (the groups' ``dt_e`` must be current), each element
-    at most at its compile-time level (its group's membership is fixed): sets ``sub.node``, ``sub.group_level``
-    (a group runs at the fastest rate any of its elements now needs) and ``sub.highest``. Returns whether anything
-    changed (nothing is recomputed when no element changed level)."""
-    own = [np.minimum(element_levels(g.dt_e, dt_min, sub.top), b) for g, b in zip(groups, sub.own)]
+class SectionView:
+    """The blocks one section (of one cell type) was split into for subcycling, seen as one element group by a
+    section add-on whose stencil crosses blocks (fibre bending's hinges join neighbouring elements). Elements in
+    part order; what an add-on reads of a group: conn, ids, frame, rho, dt_e after ``stable_dt``, ``mass(rho)``,
+    ``rest_dt(rho)``; ``slice(part)`` locates a part's elements in the view's arrays."""
+
+    solid = True
+    rotational = False
+
+    def __init__(self, parts: list):
+        self.parts = parts
+        self.name = parts[0].name.split("/level")[0]
+        self.cell_type, self.section_index = parts[0].cell_type, parts[0].section_index
+        self.conn = np.ascontiguousarray(np.concatenate([p.conn for p in parts]))
+        self.ids = np.concatenate([p.ids for p in parts])
+        self.frame = np.ascontiguousarray(np.concatenate([p.frame for p in parts]))
+        self.bounds = np.cumsum([0] + [len(p.conn) for p in parts])
+        self.dt_e = np.zeros(len(self.conn))
+        self._rho, self._rho_of = None, None
+
+    def slice(self, part) -> slice:
+        j = next(i for i, p in enumerate(self.parts) if p is part)
+        return slice(int(self.bounds[j]), int(self.bounds[j + 1]))
+
+    def _split(self, a: np.ndarray) -> list[np.ndarray]:
+        return [a[self.bounds[j]:self.bounds[j + 1]] for j in range(len(self.parts))]
+
+    @property
+    def rho(self) -> np.ndarray:
+        """(n_el,) the parts' current densities; the same object while no part's density changed (add-ons cache
+        their lumped mass by its identity)."""
+        now = [p.rho for p in self.parts]
+        if self._rho_of is None or any(a is not b for a, b in zip(now, self._rho_of)):
+            self._rho, self._rho_of = np.concatenate(now), now
+        return self._rho
+
+    def with_part_rho(self, part, rho: np.ndarray) -> np.ndarray:
+        """(n_el,) the current densities with ``part``'s replaced by rho."""
+        full = self.rho.copy()
+        full[self.slice(part)] = rho
+        return full
+
+    def stable_dt(self) -> float:
+        for p, out in zip(self.parts, self._split(self.dt_e)):
+            p.stable_dt()
+            out[:] = p.dt_e
+        return float(self.dt_e.min())
+
+    def rest_dt(self, rho: np.ndarray) -> np.ndarray:
+        return np.concatenate([p.rest_dt(r) for p, r in zip(self.parts, self._split(np.asarray(rho, float)))])
+
+    def mass(self, rho: np.ndarray) -> np.ndarray:
+        return np.concatenate([p.mass(r) for p, r in zip(self.parts, self._split(np.asarray(rho, float)))])
+
+
+def section_units(groups: list, section_index: int) -> list:
+    """What a section add-on of section ``section_index`` acts on: per cell type the section's group, or a
+    ``SectionView`` of its blocks when subcycling split it."""
+    out = []
+    mine = [g for g in groups if g.section_index == section_index]
+    for ctype in dict.fromkeys(g.cell_type for g in mine):
+        parts = [g for g in mine if g.cell_type == ctype]
+        split = len(parts) > 1 or getattr(parts[0], "subset", None) is not None
+        out.append(SectionView(parts) if split else parts[0])
+    return out
+
+
+def element_steps(groups: list, effects: list) -> list[np.ndarray]:
+    """Per group (n_el,) the current element steps [s] (after ``stable_dt`` of groups and effects): the group's
+    own, lowered where a section add-on's ``element_dt`` (over its group or ``SectionView``) is smaller."""
+    steps = [g.dt_e for g in groups]
+    where = {id(g): j for j, g in enumerate(groups)}
+    for e in effects:
+        own = e.element_dt() if e.group is not None else None
+        if own is None:
+            continue
+        for p in getattr(e.group, "parts", [e.group]):
+            j = where[id(p)]
+            steps[j] = np.minimum(steps[j], own[e.group.slice(p)] if p is not e.group else own)
+    return steps
+
+
+def regroup(sub, groups: list, steps: list[np.ndarray], dt_min: float) -> bool:
+    """Re-derive the levels from the elements' current steps ``steps`` (per group (n_el,), ``element_steps``):
+    sets ``sub.node``, ``sub.group_level`` (a group runs at the fastest rate any of its elements now needs; its
+    membership is fixed) and ``sub.highest``. Returns whether anything changed (nothing is recomputed when no
+    element changed level)."""
+    own = [element_levels(d, dt_min, sub.top) for d in steps]
     if all(np.array_equal(a, b) for a, b in zip(own, sub.own_now)):
         return False
     sub.own_now = own
@@ -250,7 +356,7 @@ def run(problem, sink, should_stop, resume, sub):
                 for g in groups:
                     update(g, 0.0)
                 for e in forcing:
-                    e.add_force(0.0, x, v, f_ext)
+                    e.add_force(0.0, x, v, f_int if e.forces == "internal" else f_ext)
             res.added_mass.append(plan.added_mass)
             step_cycles = 0
             collapse = getattr(problem.deck.steps[k], "min_dt_ratio", 0.0)
@@ -276,7 +382,10 @@ def run(problem, sink, should_stop, resume, sub):
                     raise RunStopped(f"stable time step collapsed to {h:.3g} s, below {collapse:g} x the step's first "
                                      f"{dt_start:.3g} s (steps[{k}].min_dt_ratio), set by "
                                      f"{step_setter(groups, effects)}", t)
-                sub.regroups += regroup(sub, groups, dt_min)
+                steps_now = element_steps(groups, effects)
+                sub.regroups += regroup(sub, groups, steps_now, dt_min)
+                # an add-on's steps are taken here, at the synchronised time, for the checks at the minor updates
+                lowered = [d if d is not g.dt_e else None for d, g in zip(steps_now, groups)]
                 cap = min(sub.caps[k], int(sub.node.max()))  # a major cycle no longer than the slowest node's step
                 remaining = t_step_end - t
                 while cap > 0 and (1 << cap) * h > remaining:  # the step's end is a synchronised time
@@ -333,13 +442,14 @@ def run(problem, sink, should_stop, resume, sub):
                             update(g, t)
                             sub.element_cycles += sizes[j]
                             g.stable_dt()  # current dt_e: no element may run above its own step
-                            worst = float((used[j] / g.dt_e).max())
+                            own = g.dt_e if lowered[j] is None else np.minimum(g.dt_e, lowered[j])
+                            worst = float((used[j] / own).max())
                             sub.step_ratio_max = max(sub.step_ratio_max, worst)
                             sub.over_safety += int(worst > plan.dt_safety * (1 + 1e-12))
                             t0 = timer.add(g.name, t0)
-                    for e in forcing:
-                        e.add_force(t, x, v, f_ext)
-                    t0 = timer.add("loads", t0)
+                    for e in forcing:  # every minor step: fresh at every node kicked next
+                        e.add_force(t, x, v, f_int if e.forces == "internal" else f_ext)
+                        t0 = timer.add(e.name, t0)
                 sub.element_cycles_uniform += N * sum(sizes)
                 for j in range(sub.top + 1):  # steps of the nodes of each plan level (capped this cycle)
                     sub.level_cycles[j] += N >> min(j, cap)

@@ -492,6 +492,10 @@ class FibreBendingEffect(Effect):
         element_steps(self.conn, self.R, self.nodal_mass(), self.group.dt_e, self.dt_e)
         return float(self.dt_e.min())
 
+    def element_dt(self) -> np.ndarray:
+        """(n_el,) element steps [s], bending and continuum together, from the last ``stable_dt``."""
+        return self.dt_e
+
     def rest_dt(self, rho: np.ndarray) -> np.ndarray:
         """(n_el,) element steps [s] at rest, bending and continuum together, with the group's densities rho
         (n_el,) [t/mm^3]: what mass scaling to a target step and ``fdeck info`` need before the run."""

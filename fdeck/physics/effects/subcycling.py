@@ -53,8 +53,10 @@ class SubcyclingEffect(Effect):
         for e in effects:
             if e is self:
                 continue
+            internal_ok = e.forces == "internal" and e.group is not None  # a section add-on, see engine.subcycle
             why = ("moves a body of its own" if e.moves else "acts on rotations" if e.rotational
-                   else f"adds {e.forces} forces" if e.forces not in (None, "external") else None)
+                   else f"adds {e.forces} forces" if e.forces not in (None, "external") and not internal_ok
+                   else None)
             if why:
                 out.append((getattr(e, "path", ()), f"'{e.name}' {why}, which the subcycled loop "
                             "(steps[].subcycling) does not integrate; remove one of them"))
@@ -99,9 +101,6 @@ def build(cards: list, ctx) -> SubcyclingEffect | None:
             refuse(f"steps[{i}] has bulk viscosity")
     if deck.contact:
         refuse("the deck has tool contact (moving tools)")
-    for i, sec in enumerate(deck.sections):
-        if getattr(sec, "effects", None):
-            refuse(f"sections[{i}] has section effects")
     if deck.output.checkpoint is not None:
         refuse("output.checkpoint asks for checkpoints, and the subcycled loop cannot restart from one")
     if problems:
