@@ -322,3 +322,70 @@ def test_fibre_bending_across_blocks_matches_the_uniform_step():
     assert soft.max() == own
     assert sub.step_ratio_max <= 0.9 * 1.001
     assert sub.element_cycles <= 0.80 * sub.element_cycles_uniform
+
+
+# -- subcycling with rigid tools, contact and friction -------------------------------------------------------------
+
+def pressed_block(levels: int | None) -> dict:
+    """A block 40 x 10 x 4 mm (2 mm elements) of a stiff and a soft half (neo-Hookean, E 1000 / 40 MPa: the soft
+    half's step is 5x, own level 2) on a rigid floor (linear penalty 50 MPa/mm, friction 0.3), pressed 1 mm into its
+    soft half by a moving sphere (R = 10 mm, friction 0.2 / 0.15) over 10 ms with a smooth ramp; blocks of 25."""
+    step = {"name": "press", "duration": 0.01}
+    if levels:
+        step["subcycling"] = {"levels": levels, "block_elements": 25}
+    return {"title": "pressed block", "units": "mm-t-s-N-MPa",
+            "mesh": {"block": {"size": [40, 10, 4], "divisions": [20, 5, 2]},
+                     "element_sets": {"stiff": {"box": [[0, 0, 0], [20, 10, 4]]},
+                                      "soft": {"box": [[20, 0, 0], [40, 10, 4]]}}},
+            "materials": {"a": {"type": "neo_hookean", "density": 1e-9, "youngs_modulus": 1.0e3, "poisson_ratio": 0.3},
+                          "b": {"type": "neo_hookean", "density": 1e-9, "youngs_modulus": 40.0, "poisson_ratio": 0.3}},
+            "sections": [{"elements": "stiff", "material": "a", "formulation": "fbar"},
+                         {"elements": "soft", "material": "b", "formulation": "fbar"}],
+            "amplitudes": {"ramp": {"type": "smooth_step", "t1": 0.01}},
+            "tools": {"floor": {"surface": {"shape": "plane"}},
+                      "punch": {"surface": {"shape": "sphere", "centre": [30, 5, 14.0], "radius": 10.0},
+                                "motion": {"value": 1.0, "amplitude": "ramp"}}},
+            "contact": [{"tool": "floor", "nodes": "zmin", "normal": {"law": "linear", "stiffness": 50.0},
+                         "friction": {"static": 0.3}},
+                        {"tool": "punch", "nodes": "zmax", "normal": {"law": "linear", "stiffness": 50.0},
+                         "friction": {"static": 0.2, "dynamic": 0.15}}],
+            "boundary": [{"type": "fixed", "nodes": "xmin", "dofs": ["x"]}],
+            "steps": [step], "output": {"history_points": 200}}
+
+
+def test_contact_and_friction_match_the_uniform_step():
+    """Requirement: rigid tools and contact pairs with friction run under subcycling (issue 10, deliverable 2 on a
+    forming deck): the tools advance and the pairs are evaluated at every minor step, and each contact node's level
+    is capped by its own spring step sqrt(m/k) (``Effect.node_dt``).
+    References: the uniform-step run: punch force history within 1 % of its largest value (the issue's tolerance;
+    measured 0.29 %), friction dissipation within 3 % (path-dependent: the stick-slip transitions move with the slow
+    nodes' steps; measured 1.5 %); energy balance with friction within 0.5 % of the largest energy (measured
+    0.0025 %); no element above its own step (dt_safety 0.9 plus 0.1 %); every contact node at or below the level
+    of its spring step; the soft half really subcycled (element updates at most 85 % of uniform: halves at levels 0
+    and 1-2, measured 0.78)."""
+    runs = {}
+    for levels in (None, 3):
+        problem = compile_deck(Deck.model_validate(pressed_block(levels)))
+        result = solver.run(problem, solver.Sink())
+        assert result.status == "completed", result.message
+        runs[levels] = (problem, result)
+    (p0, r0), (p1, r1) = runs[None], runs[3]
+    h0, h1 = np.array(r0.history), np.array(r1.history)
+    c0, c1 = ({c: i for i, c in enumerate(r.columns)} for r in (r0, r1))
+    f0 = h0[:, c0["tool_punch_force_z"]]
+    f1 = np.interp(h0[:, 0], h1[:, 0], h1[:, c1["tool_punch_force_z"]])
+    assert np.abs(f0).max() > 100.0  # the sphere presses the block into the floor
+    assert np.abs(f1 - f0).max() <= 0.01 * np.abs(f0).max()
+    fr0, fr1 = h0[-1, c0["friction_dissipation"]], h1[-1, c1["friction_dissipation"]]
+    assert fr0 > 0 and fr1 == pytest.approx(fr0, rel=0.03)
+    scale = np.abs(h1[:, [c1["kinetic_energy"], c1["internal_energy"], c1["tool_work_punch"]]]).max()
+    assert np.abs(h1[:, c1["energy_balance_error"]]).max() <= 0.005 * scale
+    sub = next(e for e in p1.effects if e.name == "subcycling")
+    assert sub.step_ratio_max <= 0.9 * 1.001
+    dt_min = min([g.stable_dt() for g in p1.groups] + [e.stable_dt() for e in p1.effects])
+    for e in p1.effects:
+        if e.name.startswith("contact:"):
+            nodes, dt = e.node_dt()
+            allowed = np.floor(np.log2(dt / dt_min + 1e-12)).clip(0, sub.top)
+            assert (sub.node[nodes] <= allowed).all()
+    assert sub.element_cycles <= 0.85 * sub.element_cycles_uniform

@@ -40,6 +40,9 @@ class Effect:
     constrains = False
     moves = False
     rotational = False
+    # internal forces the subcycled loop (engine.subcycle) may evaluate at every minor step: any stiffness of the
+    # effect reaches the levels through ``element_dt`` or ``node_dt`` (fibre bending, contact, a tool)
+    subcycling_safe = False
     terms: tuple[Term, ...] = ()
     group = None  # the element group of a section add-on
 
@@ -68,6 +71,11 @@ class Effect:
         return None
 
     def element_dt(self) -> np.ndarray | None:
+        return None
+
+    def node_dt(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """(nodes (k,), steps (k,) [s]) for an effect that is a spring on single nodes (contact): each node's own
+        step bound with the current step's masses, for subcycling's node levels; None otherwise."""
         return None
 
     def check_plan(self, plans) -> list[str]:

@@ -26,6 +26,8 @@ dynamics equations", Comput. Mech. 18, 1996):
   the rate of its fastest element. Every group update in between measures the ratio of the step its slowest node
   uses to its own current step (``step_ratio_max``, must stay below 1) and counts the updates where it exceeded
   dt_safety;
+* rigid tools advance and contact pairs are evaluated at every minor step (a node is seen by the tool whatever its
+  level), and each contact node's spring step sqrt(m/k) (``Effect.node_dt``) caps its level;
 * section add-ons with a stiffness of their own (fibre bending: hinges joining neighbouring elements) act on the
   whole section, seen through a ``SectionView`` of its blocks; they are evaluated at every minor step (their forces
   are then fresh at every node that is kicked), and their element steps (``Effect.element_dt``) lower the levels of
@@ -43,7 +45,7 @@ measures it: history rows (and frames) are taken only at synchronised times, whe
 (stored energies); the work of external forces and reactions is the trapezoidal rule over each node's own step.
 
 Not supported (refused at compile time by ``effects.subcycling``): shells and rotations, non-hexahedral groups,
-selective mass scaling, contact and moving tools, damping and bulk viscosity, checkpoints/restart.
+selective mass scaling, damping and bulk viscosity, checkpoints/restart.
 """
 
 from __future__ import annotations
@@ -59,13 +61,34 @@ from fdeck.jit import njit
 
 
 def element_levels(dt_e: np.ndarray, dt_min: float, top: int) -> np.ndarray:
-    """(n_el,) int64: the largest k <= top with 2^k dt_min <= dt_e (0 where dt_e < 2 dt_min)."""
-    ratio = np.asarray(dt_e, float) / dt_min
-    with np.errstate(divide="ignore"):
-        k = np.floor(np.log2(np.maximum(ratio, 1.0)))
-    k = np.where(np.isfinite(k), k, top)
-    k = k - (np.exp2(k) > ratio)  # log2 may round up just below a power of two
-    return np.clip(k, 0, top).astype(np.int64)
+    """(n_el,) int64: the largest k <= top with 2^k dt_min <= dt_e (0 where dt_e < 2 dt_min; top where dt_e is
+    infinite)."""
+    out = np.empty(len(dt_e), np.int64)
+    _levels(np.asarray(dt_e, float), float(dt_min), int(top), out)
+    return out
+
+
+@njit
+def _levels(dt_e, dt_min, top, out):
+    # doubling instead of log2: exact at powers of two, and a handful of comparisons per element (called for every
+    # group at every synchronised time, so numpy's temporaries would cost more than the comparisons)
+    for e in range(dt_e.shape[0]):
+        k = 0
+        step = 2.0 * dt_min
+        while k < top and step <= dt_e[e]:
+            k += 1
+            step *= 2.0
+        out[e] = k
+
+
+@njit
+def step_ratio(dt_e, lowered, used):
+    """Largest used / own step over a group's elements: dt_e (n_el,) their current steps, lowered (n_el,) the
+    add-ons' steps from the synchronised time (inf where none), used (n_el,) the step of each one's slowest node."""
+    worst = 0.0
+    for e in range(dt_e.shape[0]):
+        worst = max(worst, used[e] / min(dt_e[e], lowered[e]))
+    return worst
 
 
 def static_plan(groups: list, n_node: int, top: int):
@@ -76,12 +99,13 @@ def static_plan(groups: list, n_node: int, top: int):
     return (own,) + node_levels(groups, own, n_node, top)
 
 
-def node_levels(groups: list, own: list[np.ndarray], n_node: int, top: int):
+def node_levels(groups: list, own: list[np.ndarray], n_node: int, top: int, caps: np.ndarray | None = None):
     """From the elements' own levels ``own`` (per group (n_el,)): (node, update, highest) with node (n_node,) the
-    node levels n_a = min over the node's elements of b_e, graded so that the levels of an element's nodes differ
-    by at most one (``top`` at nodes without elements); per group (n_el,) update levels u_e = min over the element's
-    nodes of n_a and m_e = max over them."""
-    node = np.full(n_node, top, np.int64)
+    node levels n_a = min over the node's elements of b_e and of the node's own cap ``caps`` (n_node,) (a contact
+    spring's step, ``node_caps``), graded so that the levels of an element's nodes differ by at most one (``top`` at
+    nodes without elements); per group (n_el,) update levels u_e = min over the element's nodes of n_a and m_e =
+    max over them."""
+    node = np.full(n_node, top, np.int64) if caps is None else caps.copy()
     for g, b in zip(groups, own):
         np.minimum.at(node, g.conn.ravel(), np.repeat(b, g.conn.shape[1]))
     for _ in range(top):  # grade: across any element the node steps differ by at most a factor 2
@@ -219,16 +243,27 @@ def element_steps(groups: list, effects: list) -> list[np.ndarray]:
     return steps
 
 
-def regroup(sub, groups: list, steps: list[np.ndarray], dt_min: float) -> bool:
-    """Re-derive the levels from the elements' current steps ``steps`` (per group (n_el,), ``element_steps``):
-    sets ``sub.node``, ``sub.group_level`` (a group runs at the fastest rate any of its elements now needs; its
-    membership is fixed) and ``sub.highest``. Returns whether anything changed (nothing is recomputed when no
-    element changed level)."""
+def node_caps(effects: list, n_node: int, dt_min: float, top: int) -> np.ndarray:
+    """(n_node,) int: the highest level each node may take for the effects acting on it alone (``Effect.node_dt``:
+    a contact spring on the node's mass), ``top`` where none does."""
+    caps = np.full(n_node, top, np.int64)
+    for e in effects:
+        own = e.node_dt()
+        if own is not None:
+            np.minimum.at(caps, own[0], element_levels(own[1], dt_min, top))
+    return caps
+
+
+def regroup(sub, groups: list, steps: list[np.ndarray], caps: np.ndarray, dt_min: float) -> bool:
+    """Re-derive the levels from the elements' current steps ``steps`` (per group (n_el,), ``element_steps``) and
+    the nodes' caps (``node_caps``): sets ``sub.node``, ``sub.group_level`` (a group runs at the fastest rate any of
+    its elements now needs; its membership is fixed) and ``sub.highest``. Returns whether anything changed (nothing
+    is recomputed when no level changed)."""
     own = [element_levels(d, dt_min, sub.top) for d in steps]
-    if all(np.array_equal(a, b) for a, b in zip(own, sub.own_now)):
+    if all(np.array_equal(a, b) for a, b in zip(own, sub.own_now)) and np.array_equal(caps, sub.caps_now):
         return False
-    sub.own_now = own
-    sub.node, update, sub.highest = node_levels(groups, own, len(sub.node), sub.top)
+    sub.own_now, sub.caps_now = own, caps
+    sub.node, update, sub.highest = node_levels(groups, own, len(sub.node), sub.top, caps)
     sub.group_level = [int(u.min()) for u in update]
     return True
 
@@ -317,10 +352,14 @@ def run(problem, sink, should_stop, resume, sub):
         return res
     book = ledger(problem)
     forcing = [e for e in effects if e.forces is not None]
+    movers = [e for e in effects if e.moves]
     constraints = [e for e in effects if e.constrains]
     f_int, f_ext = np.zeros((n, 3)), np.zeros((n, 3))
     v_old, fe_prev, dx, reaction = (np.zeros((n, 3)) for _ in range(4))
     h_prev, dt_avg = np.zeros(n), np.zeros(n)
+    h_last = 0.0  # the last minor step, for the tools' central-difference update
+    level = None  # node levels of the current major cycle's plan (with g_level, below, scale)
+    unlowered = [np.full(len(g.conn), np.inf) for g in groups]  # no add-on's step on these elements
     timer = _Timer()
     T = problem.duration
     frame_times = np.linspace(0.0, T, problem.deck.output.frames + 1)
@@ -383,9 +422,10 @@ def run(problem, sink, should_stop, resume, sub):
                                      f"{dt_start:.3g} s (steps[{k}].min_dt_ratio), set by "
                                      f"{step_setter(groups, effects)}", t)
                 steps_now = element_steps(groups, effects)
-                sub.regroups += regroup(sub, groups, steps_now, dt_min)
+                changed = regroup(sub, groups, steps_now, node_caps(effects, n, dt_min, sub.top), dt_min)
+                sub.regroups += changed
                 # an add-on's steps are taken here, at the synchronised time, for the checks at the minor updates
-                lowered = [d if d is not g.dt_e else None for d, g in zip(steps_now, groups)]
+                lowered = [none if d is g.dt_e else d for d, g, none in zip(steps_now, groups, unlowered)]
                 cap = min(sub.caps[k], int(sub.node.max()))  # a major cycle no longer than the slowest node's step
                 remaining = t_step_end - t
                 while cap > 0 and (1 << cap) * h > remaining:  # the step's end is a synchronised time
@@ -394,10 +434,12 @@ def run(problem, sink, should_stop, resume, sub):
                 if not h > 0.0 or not math.isfinite(h):
                     raise RunStopped(f"stable time step is {h:.3g} s", t)
                 N = 1 << cap
-                level = np.minimum(sub.node, cap)
-                g_level = [min(int(u), cap) for u in sub.group_level]
-                below = [np.flatnonzero(level <= j) for j in range(cap + 1)]  # nodes kicked when level j is due
-                used = [h * np.exp2(np.minimum(mh, cap)) for mh in sub.highest]  # step of each element's slowest node
+                if changed or cap != sub.cap or level is None:  # the plan of the major cycle, kept while it holds
+                    level = np.minimum(sub.node, cap)
+                    g_level = [min(int(u), cap) for u in sub.group_level]
+                    below = [np.flatnonzero(level <= j) for j in range(cap + 1)]  # nodes kicked when level j is due
+                    scale = [np.exp2(np.minimum(mh, cap)) for mh in sub.highest]  # each element's slowest node
+                used = [h * s for s in scale]  # [s]
                 sub.cap = cap
                 for i in range(N):
                     due = cap if i == 0 else trailing_zeros(i)
@@ -429,6 +471,9 @@ def run(problem, sink, should_stop, resume, sub):
                             res.history.append(row)
                             sink.history(row)
                             next_hist = past(hist_times, next_hist, t, T)
+                    for e in movers:  # the tools at t + h, before the forces there (every minor step)
+                        e.advance(t + h, h, 0.5 * (h_last + h) if h_last > 0.0 else h)
+                    h_last = h
                     drift_nodes(x, v, dx, h)
                     t += h
                     res.cycles += 1
@@ -442,8 +487,7 @@ def run(problem, sink, should_stop, resume, sub):
                             update(g, t)
                             sub.element_cycles += sizes[j]
                             g.stable_dt()  # current dt_e: no element may run above its own step
-                            own = g.dt_e if lowered[j] is None else np.minimum(g.dt_e, lowered[j])
-                            worst = float((used[j] / own).max())
+                            worst = step_ratio(g.dt_e, lowered[j], used[j])
                             sub.step_ratio_max = max(sub.step_ratio_max, worst)
                             sub.over_safety += int(worst > plan.dt_safety * (1 + 1e-12))
                             t0 = timer.add(g.name, t0)

@@ -219,6 +219,7 @@ class RigidContact(Effect):
     """Blank nodes against one rigid tool (``effects.tool.RigidTool``); see the module docstring."""
 
     forces = "internal"
+    subcycling_safe = True  # its springs' steps cap the contact nodes' levels (node_dt)
 
     def __init__(self, tool, nodes, area, vec, offset, two_sided, law, friction, X, search):
         self.name, self.tool = f"contact:{tool.tool}", tool
@@ -270,6 +271,11 @@ class RigidContact(Effect):
         speed = self.tool.speed_bound(plan.start, plan.start + plan.duration)
         self.dt_travel = self.travel_limit / speed if speed > 0.0 else math.inf
         self.dt = min(self.dt_spring, self.dt_travel)
+        self.dt_nodes = (self.nodes[touching], np.sqrt(m[touching] / self.k_max[touching]))
+
+    def node_dt(self):
+        """Each contact node's spring step sqrt(m / k) [s] with the step's masses (from ``begin_step``)."""
+        return self.dt_nodes
 
     def check_plan(self, plans) -> list[str]:
         """A tool that a node can only catch up with after crossing its offset (a shell node) or the search distance

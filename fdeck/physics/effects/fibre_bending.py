@@ -425,6 +425,7 @@ class FibreBendingEffect(Effect):
     """Bending energy of the fibres of one element group; see the module docstring for the formulation."""
 
     forces = "internal"
+    subcycling_safe = True  # its hinges' steps enter the levels (element_dt)
     terms = (Term("bending_energy", STORED),)
 
     def __init__(self, name, group, X, geo, left, right, fam, laws, thickness):

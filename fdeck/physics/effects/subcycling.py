@@ -34,6 +34,7 @@ class SubcyclingEffect(Effect):
         self.own, self.node, update, self.highest = static_plan(groups, n_node, self.top)
         self.group_level = [int(u.min()) for u in update]  # one level per group after the split
         self.own_now = [o.copy() for o in self.own]
+        self.caps_now = np.full(n_node, self.top, np.int64)  # nodes' caps from contact springs (``node_caps``)
         self.regroups = 0  # synchronised times at which some element changed level
         self.rest_dt = [g.rest_dt(g.rho) for g in groups]
         self.cap = 0
@@ -53,9 +54,8 @@ class SubcyclingEffect(Effect):
         for e in effects:
             if e is self:
                 continue
-            internal_ok = e.forces == "internal" and e.group is not None  # a section add-on, see engine.subcycle
-            why = ("moves a body of its own" if e.moves else "acts on rotations" if e.rotational
-                   else f"adds {e.forces} forces" if e.forces not in (None, "external") and not internal_ok
+            why = ("acts on rotations" if e.rotational
+                   else f"adds {e.forces} forces" if e.forces not in (None, "external") and not e.subcycling_safe
                    else None)
             if why:
                 out.append((getattr(e, "path", ()), f"'{e.name}' {why}, which the subcycled loop "
@@ -99,8 +99,6 @@ def build(cards: list, ctx) -> SubcyclingEffect | None:
             refuse(f"steps[{i}] has damping")
         if s.bulk_viscosity is not None:
             refuse(f"steps[{i}] has bulk viscosity")
-    if deck.contact:
-        refuse("the deck has tool contact (moving tools)")
     if deck.output.checkpoint is not None:
         refuse("output.checkpoint asks for checkpoints, and the subcycled loop cannot restart from one")
     if problems:

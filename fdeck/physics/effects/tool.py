@@ -35,6 +35,7 @@ class RigidTool(Effect):
 
     forces = "internal"  # adds nothing to the blank: clears the contact pairs' load before they run
     moves = True
+    subcycling_safe = True  # no force of its own on the blank
 
     def __init__(self, name, card, amplitude, surface, extent):
         self.name, self.tool = f"tool:{name}", name
