@@ -82,6 +82,19 @@ def _levels(dt_e, dt_min, top, out):
 
 
 @njit
+def foresee(now, last, out):
+    """out (n_el,) = the element steps expected one major cycle ahead: now, times now / last where the step fell
+    since the last synchronised time (a stiffening element continues at its rate), so that an element whose step
+    is collapsing (a blank pinched at closure) drops a level before it runs above its own step, not after; then
+    last = now. Returns out. All (n_el,) [s]."""
+    for e in range(now.shape[0]):
+        d = now[e]
+        out[e] = d * (d / last[e]) ** 2 if d < last[e] else d
+        last[e] = d
+    return out
+
+
+@njit
 def step_ratio(dt_e, lowered, used):
     """Largest used / own step over a group's elements: dt_e (n_el,) their current steps, lowered (n_el,) the
     add-ons' steps from the synchronised time (inf where none), used (n_el,) the step of each one's slowest node."""
@@ -360,6 +373,8 @@ def run(problem, sink, should_stop, resume, sub):
     h_last = 0.0  # the last minor step, for the tools' central-difference update
     level = None  # node levels of the current major cycle's plan (with g_level, below, scale)
     unlowered = [np.full(len(g.conn), np.inf) for g in groups]  # no add-on's step on these elements
+    last_steps = [np.full(len(g.conn), np.inf) for g in groups]  # element steps at the last synchronised time
+    ahead_steps = [np.zeros(len(g.conn)) for g in groups]
     timer = _Timer()
     T = problem.duration
     frame_times = np.linspace(0.0, T, problem.deck.output.frames + 1)
@@ -422,7 +437,8 @@ def run(problem, sink, should_stop, resume, sub):
                                      f"{dt_start:.3g} s (steps[{k}].min_dt_ratio), set by "
                                      f"{step_setter(groups, effects)}", t)
                 steps_now = element_steps(groups, effects)
-                changed = regroup(sub, groups, steps_now, node_caps(effects, n, dt_min, sub.top), dt_min)
+                ahead = [foresee(d, p, a) for d, p, a in zip(steps_now, last_steps, ahead_steps)]
+                changed = regroup(sub, groups, ahead, node_caps(effects, n, dt_min, sub.top), dt_min)
                 sub.regroups += changed
                 # an add-on's steps are taken here, at the synchronised time, for the checks at the minor updates
                 lowered = [none if d is g.dt_e else d for d, g, none in zip(steps_now, groups, unlowered)]
@@ -430,6 +446,7 @@ def run(problem, sink, should_stop, resume, sub):
                 remaining = t_step_end - t
                 while cap > 0 and (1 << cap) * h > remaining:  # the step's end is a synchronised time
                     cap -= 1
+                h_stable = h  # the step range reported is the stable step's, not the cut to the step's end
                 h = min(h, remaining / (1 << cap))
                 if not h > 0.0 or not math.isfinite(h):
                     raise RunStopped(f"stable time step is {h:.3g} s", t)
@@ -497,7 +514,7 @@ def run(problem, sink, should_stop, resume, sub):
                 sub.element_cycles_uniform += N * sum(sizes)
                 for j in range(sub.top + 1):  # steps of the nodes of each plan level (capped this cycle)
                     sub.level_cycles[j] += N >> min(j, cap)
-                res.dt_min, res.dt_max = min(res.dt_min, h), max(res.dt_max, h)
+                res.dt_min, res.dt_max = min(res.dt_min, h_stable), max(res.dt_max, h_stable)
                 if next_frame < len(frame_times) and t >= frame_times[next_frame] - 1e-12 * T:
                     sink.frame(t, x, v)
                     next_frame = past(frame_times, next_frame, t, T)
