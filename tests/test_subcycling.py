@@ -252,6 +252,17 @@ def test_levels_card_validated():
 E_STIFF, SOFT = 1.6e3, 25.0  # soft half E / 25: its continuum step is 5x the stiff half's (own level 2)
 
 
+def uniform_and_subcycled(deck) -> list:
+    """[(problem, history array, column index)] of ``deck(None)`` (uniform step) and ``deck(3)`` (three levels)."""
+    out = []
+    for levels in (None, 3):
+        problem = compile_deck(Deck.model_validate(deck(levels)))
+        result = solver.run(problem, solver.Sink())
+        assert result.status == "completed", result.message
+        out.append((problem, np.array(result.history), {c: i for i, c in enumerate(result.columns)}))
+    return out
+
+
 def bent_strip(levels: int | None) -> dict:
     """A strip 80 x 2 x 8 mm (1 x 2 x 2 mm elements: 80 x 1 x 4), clamped at x = 0, its stiff half x < 40 and soft
     half (E / 25) each with fibre bending along x (D1 = 600 N mm, D2 = 100 mm^2 D1), loaded at its tip across the
@@ -288,21 +299,13 @@ def test_fibre_bending_across_blocks_matches_the_uniform_step():
     answer is the uniform step's.
     References: the uniform-step run of the same deck: tip deflection history within 1 % of its largest value (the
     issue's tolerance for a subcycled answer; BYM's interface error is first order in the slow step: measured
-    0.23 %), bending energy at the end within 1 % (measured +0.5 %); energy balance within 0.5 % of the largest energy (the bar's
-    limit above); no element above its own step (ratio <= dt_safety 0.9, plus 0.1 % for the change of the moduli
+    0.23 %), bending energy at the end within 1 % (measured +0.5 %); energy balance within 0.5 % of the largest
+    energy (the bar's limit above); no element above its own step (ratio <= dt_safety 0.9, plus 0.1 % for the change of the moduli
     within a major cycle). Levels, closed form: the soft half's continuum step is sqrt(25) = 5x the stiff one's
     (level floor(log2 5) = 2), but its hinges make its own step (bending and continuum together) less than 4x, so
     its elements run at level floor(log2(ratio)) of that combined step (1 here), never at 2; element updates at most
     80 % of the uniform step's (halves at levels 0 and 1: about (1 + 1/2) / 2 = 75 %)."""
-    runs = {}
-    for levels in (None, 3):
-        problem = compile_deck(Deck.model_validate(bent_strip(levels)))
-        result = solver.run(problem, solver.Sink())
-        assert result.status == "completed", result.message
-        runs[levels] = (problem, result)
-    (p0, r0), (p1, r1) = runs[None], runs[3]
-    h0, h1 = np.array(r0.history), np.array(r1.history)
-    c0, c1 = ({c: i for i, c in enumerate(r.columns)} for r in (r0, r1))
+    (_, h0, c0), (p1, h1, c1) = uniform_and_subcycled(bent_strip)
     tip0, tip1 = h0[:, c0["tip"]], np.interp(h0[:, 0], h1[:, 0], h1[:, c1["tip"]])
     assert np.abs(tip0).max() > 1.0  # the strip bends by millimetres: the hinges are loaded
     assert np.abs(tip1 - tip0).max() <= 0.01 * np.abs(tip0).max()
@@ -363,15 +366,7 @@ def test_contact_and_friction_match_the_uniform_step():
     0.0025 %); no element above its own step (dt_safety 0.9 plus 0.1 %); every contact node at or below the level
     of its spring step; the soft half really subcycled (element updates at most 85 % of uniform: halves at levels 0
     and 1-2, measured 0.78)."""
-    runs = {}
-    for levels in (None, 3):
-        problem = compile_deck(Deck.model_validate(pressed_block(levels)))
-        result = solver.run(problem, solver.Sink())
-        assert result.status == "completed", result.message
-        runs[levels] = (problem, result)
-    (p0, r0), (p1, r1) = runs[None], runs[3]
-    h0, h1 = np.array(r0.history), np.array(r1.history)
-    c0, c1 = ({c: i for i, c in enumerate(r.columns)} for r in (r0, r1))
+    (_, h0, c0), (p1, h1, c1) = uniform_and_subcycled(pressed_block)
     f0 = h0[:, c0["tool_punch_force_z"]]
     f1 = np.interp(h0[:, 0], h1[:, 0], h1[:, c1["tool_punch_force_z"]])
     assert np.abs(f0).max() > 100.0  # the sphere presses the block into the floor
