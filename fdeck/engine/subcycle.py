@@ -82,25 +82,33 @@ def _levels(dt_e, dt_min, top, out):
 
 
 @njit
-def foresee(now, last, out):
-    """out (n_el,) = the element steps expected one major cycle ahead: now, times now / last where the step fell
+def foresee(now, last, over, safety, out):
+    """out (n_el,) = the element steps expected one major cycle ahead: now, times (now / last)^2 where the step fell
     since the last synchronised time (a stiffening element continues at its rate), so that an element whose step
-    is collapsing (a blank pinched at closure) drops a level before it runs above its own step, not after; then
-    last = now. Returns out. All (n_el,) [s]."""
+    is collapsing (a blank pinched at closure) drops a level before it runs above its own step, not after; and
+    times safety / over for an element that ran above ``safety`` of its own step during the last major cycle
+    (``over`` (n_el,): its largest used / own step then, reset here), so that one that stiffened faster than
+    foreseen drops further. Then last = now. Returns out. All (n_el,) [s]."""
     for e in range(now.shape[0]):
         d = now[e]
         out[e] = d * (d / last[e]) ** 2 if d < last[e] else d
+        if over[e] > safety:
+            out[e] *= safety / over[e]
+        over[e] = 0.0
         last[e] = d
     return out
 
 
 @njit
-def step_ratio(dt_e, lowered, used):
+def step_ratio(dt_e, lowered, used, over):
     """Largest used / own step over a group's elements: dt_e (n_el,) their current steps, lowered (n_el,) the
-    add-ons' steps from the synchronised time (inf where none), used (n_el,) the step of each one's slowest node."""
+    add-ons' steps from the synchronised time (inf where none), used (n_el,) the step of each one's slowest node;
+    over (n_el,) keeps each element's largest ratio since the last synchronised time (for ``foresee``)."""
     worst = 0.0
     for e in range(dt_e.shape[0]):
-        worst = max(worst, used[e] / min(dt_e[e], lowered[e]))
+        r = used[e] / min(dt_e[e], lowered[e])
+        over[e] = max(over[e], r)
+        worst = max(worst, r)
     return worst
 
 
@@ -375,6 +383,7 @@ def run(problem, sink, should_stop, resume, sub):
     unlowered = [np.full(len(g.conn), np.inf) for g in groups]  # no add-on's step on these elements
     last_steps = [np.full(len(g.conn), np.inf) for g in groups]  # element steps at the last synchronised time
     ahead_steps = [np.zeros(len(g.conn)) for g in groups]
+    overshoot = [np.zeros(len(g.conn)) for g in groups]  # each element's largest used / own step in the cycle
     timer = _Timer()
     T = problem.duration
     frame_times = np.linspace(0.0, T, problem.deck.output.frames + 1)
@@ -437,7 +446,8 @@ def run(problem, sink, should_stop, resume, sub):
                                      f"{dt_start:.3g} s (steps[{k}].min_dt_ratio), set by "
                                      f"{step_setter(groups, effects)}", t)
                 steps_now = element_steps(groups, effects)
-                ahead = [foresee(d, p, a) for d, p, a in zip(steps_now, last_steps, ahead_steps)]
+                ahead = [foresee(d, p, o, plan.dt_safety, a)
+                         for d, p, o, a in zip(steps_now, last_steps, overshoot, ahead_steps)]
                 changed = regroup(sub, groups, ahead, node_caps(effects, n, dt_min, sub.top), dt_min)
                 sub.regroups += changed
                 # an add-on's steps are taken here, at the synchronised time, for the checks at the minor updates
@@ -504,7 +514,7 @@ def run(problem, sink, should_stop, resume, sub):
                             update(g, t)
                             sub.element_cycles += sizes[j]
                             g.stable_dt()  # current dt_e: no element may run above its own step
-                            worst = step_ratio(g.dt_e, lowered[j], used[j])
+                            worst = step_ratio(g.dt_e, lowered[j], used[j], overshoot[j])
                             sub.step_ratio_max = max(sub.step_ratio_max, worst)
                             sub.over_safety += int(worst > plan.dt_safety * (1 + 1e-12))
                             t0 = timer.add(g.name, t0)
