@@ -3,26 +3,39 @@ the weighted mean over each element's points, in one compiled loop.
 
 Why a compiled loop: called from Python once per point, a material's ``diagnose`` costs its dispatch (about 8 us)
 per call; on the 24 000-hexahedron tetrahedron a `max_shear_angle` history measure took 1.6 s per row that way
-(14 % of the run's first minutes at 500 history rows). Here the material's jitted ``diagnose`` is passed to one
-jitted loop as a first-class function (numba compiles and caches one loop per material).
+(14 % of the run's first minutes at 500 history rows). Here one loop per material calls that material's jitted
+``diagnose`` directly, compiled once per process and kept (``_loop``). Not in numba's on-disk cache: a cached loop
+taking ``diagnose`` as a first-class function argument (the first version) keys its cache index on the
+dispatcher's type, and a process that loaded an index another had just written could not write it back
+("underlying object has vanished", seen on a cold cache in the test suite); compiling the loop costs a fraction of
+a second, once, in the processes that write element output.
 """
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
-from fdeck.jit import njit
+from fdeck.jit import FLAGS
+
+_LOOPS: dict = {}  # material diagnose -> its compiled loop, for this process
 
 
-@njit
-def _accumulate(diagnose, F, frame, params, src, w, vals):
-    """vals[e] += w[e, q] diagnose(F[e, q], frame[src[e, q]], params[src[e, q]]) over every element e and point q.
-    F (n, k, 3, 3); frame (m, 3, 3); params (m, n_params); src, w (n, k); vals (n, n_diagnostics)."""
-    for e in range(F.shape[0]):
-        for q in range(F.shape[1]):
-            d = diagnose(F[e, q], frame[src[e, q]], params[src[e, q]])
-            for i in range(vals.shape[1]):
-                vals[e, i] += w[e, q] * d[i]
+def _loop(diagnose):
+    """The compiled loop vals[e] += w[e, q] diagnose(F[e, q], frame[src[e, q]], params[src[e, q]]) over every
+    element e and point q, for one material's ``diagnose``. F (n, k, 3, 3); frame (m, 3, 3); params
+    (m, n_params); src, w (n, k); vals (n, n_diagnostics)."""
+    loop = _LOOPS.get(diagnose)
+    if loop is None:
+        @numba.njit(**{**FLAGS, "cache": False})
+        def loop(F, frame, params, src, w, vals):
+            for e in range(F.shape[0]):
+                for q in range(F.shape[1]):
+                    d = diagnose(F[e, q], frame[src[e, q]], params[src[e, q]])
+                    for i in range(vals.shape[1]):
+                        vals[e, i] += w[e, q] * d[i]
+        _LOOPS[diagnose] = loop
+    return loop
 
 
 def averaged(material, F: np.ndarray, frame: np.ndarray, params: np.ndarray, src: np.ndarray,
@@ -34,6 +47,6 @@ def averaged(material, F: np.ndarray, frame: np.ndarray, params: np.ndarray, src
     if material.diagnose is None:
         return {}
     vals = np.zeros((F.shape[0], len(material.diagnostics)))
-    _accumulate(material.diagnose, np.ascontiguousarray(F), frame, params, np.ascontiguousarray(src, np.int64),
-                np.ascontiguousarray(w, dtype=float), vals)
+    _loop(material.diagnose)(np.ascontiguousarray(F), frame, params, np.ascontiguousarray(src, np.int64),
+                             np.ascontiguousarray(w, dtype=float), vals)
     return {name: vals[:, i] for i, name in enumerate(material.diagnostics)}
