@@ -199,12 +199,12 @@ class SectionView:
         self.ids = np.concatenate([p.ids for p in parts])
         self.frame = np.ascontiguousarray(np.concatenate([p.frame for p in parts]))
         self.bounds = np.cumsum([0] + [len(p.conn) for p in parts])
+        self._slices = {id(p): slice(int(a), int(b)) for p, a, b in zip(parts, self.bounds[:-1], self.bounds[1:])}
         self.dt_e = np.zeros(len(self.conn))
         self._rho, self._rho_of = None, None
 
     def slice(self, part) -> slice:
-        j = next(i for i, p in enumerate(self.parts) if p is part)
-        return slice(int(self.bounds[j]), int(self.bounds[j + 1]))
+        return self._slices[id(part)]  # the parts are held by the view, so their ids stay theirs
 
     def _split(self, a: np.ndarray) -> list[np.ndarray]:
         return [a[self.bounds[j]:self.bounds[j + 1]] for j in range(len(self.parts))]
