@@ -35,8 +35,7 @@ def run_static(deck_data: dict, base_dir: Path, out_dir: Path, options: dict, se
     ``fdeck run``)."""
     from fdeck.io.outdir import writing
 
-    out_dir.mkdir(parents=True, exist_ok=True)
-    with writing(out_dir):
+    with writing(out_dir):  # makes the folder
         return _run_static(deck_data, base_dir, out_dir, options, seed)
 
 
