@@ -98,31 +98,43 @@ def _file_kind(path: Path) -> str:
 
 
 def _progress_printer(total: float):
-    """Progress: a rich bar on a terminal, plain periodic lines otherwise (CI logs)."""
-    start = time.perf_counter()
+    """Progress: a rich bar on a terminal, plain periodic lines otherwise (CI logs). Rate and time remaining are
+    measured from the first report this process sees, so a run continued from a checkpoint (t and cycles far from
+    zero at its first report) is not credited with the cycles of the process that wrote the checkpoint."""
+    first: list = []  # (wall [s], t [s], cycles) of the first report
+
+    def since_first(t, cycles):
+        """-> (wall since the first report [s], cycles per second, time remaining [s]); nan where not yet known."""
+        now = time.perf_counter()
+        if not first:
+            first.append((now, t, cycles))
+        w0, t0, c0 = first[0]
+        el = now - w0
+        rate = (cycles - c0) / el if el > 0 else float("nan")
+        eta = el * (total - t) / (t - t0) if t > t0 else float("nan")
+        return el, rate, eta
+
     if sys.stderr.isatty():
-        from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+        from rich.progress import BarColumn, Progress, TextColumn
 
         bar = Progress(TextColumn("t = {task.fields[t]:.4g} s"), BarColumn(), TextColumn("{task.fields[rate]}"),
-                       TimeRemainingColumn(), transient=True)
+                       transient=True)
         task = bar.add_task("run", total=total, t=0.0, rate="")
         bar.start()
 
         def update(t, cycles, dt):
-            rate = cycles / max(time.perf_counter() - start, 1e-9)
-            bar.update(task, completed=t, t=t, rate=f"{rate:,.0f} cycles/s  dt {dt:.3g} s")
+            _, rate, eta = since_first(t, cycles)
+            bar.update(task, completed=t, t=t, rate=f"{rate:,.0f} cycles/s  dt {dt:.3g} s  ETA {eta:.0f} s")
 
         return update, bar.stop
-    last = [0.0]
+    last = [0.0]  # wall of the last line printed, since the first report
 
     def plain(t, cycles, dt):
-        now = time.perf_counter()
-        if now - last[0] >= 5.0:
-            last[0] = now
-            el = now - start
-            eta = el * (total - t) / t if t > 0 else float("nan")
+        el, rate, eta = since_first(t, cycles)
+        if el - last[0] >= 5.0:
+            last[0] = el
             _err(f"  t = {t:.4g} / {total:.4g} s ({100 * t / total:5.1f} %), {cycles} cycles, "
-                 f"{cycles / el:,.0f} cycles/s, dt {dt:.3g} s, ETA {eta:.0f} s")
+                 f"{rate:,.0f} cycles/s, dt {dt:.3g} s, ETA {eta:.0f} s")
 
     return plain, lambda: None
 

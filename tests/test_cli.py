@@ -262,3 +262,25 @@ def test_decks_start_with_schema_line():
         first = d.read_text().splitlines()[0]
         assert first.startswith("# yaml-language-server: $schema="), d
         assert first.endswith(f"schemas/{kind}.schema.json"), d
+
+
+def test_progress_rate_and_eta_count_from_the_first_report_of_a_continued_run(monkeypatch):
+    """A run continued from a checkpoint at 86 % reports 80 000 cycles at its first progress call. The rate and time
+    remaining are this process's own: closed form from a fake clock, cycles per second = (c - c0) / (w - w0) and
+    ETA = (w - w0) (T - t) / (t - t0). Before the fix the rate divided all 80 100 cycles by 10 s of this process and
+    the ETA took t from 0 (about 1.6 s instead of about 816 s)."""
+    from fdeck import cli
+
+    clock = iter([100.0, 110.0])
+    monkeypatch.setattr(cli.time, "perf_counter", lambda: next(clock))
+    monkeypatch.setattr(cli.sys.stderr, "isatty", lambda: False, raising=False)
+    lines = []
+    monkeypatch.setattr(cli, "_err", lines.append)
+    report, _ = cli._progress_printer(0.5916)
+    report(0.50, 80000, 3.2e-6)  # the first report sets the reference and prints nothing
+    report(0.51, 80100, 3.2e-6)
+    assert len(lines) == 1
+    rate = float(lines[0].split("cycles, ")[1].split(" cycles/s")[0].replace(",", ""))
+    eta = float(lines[0].split("ETA ")[1].split(" s")[0])
+    assert rate == 10.0  # (80100 - 80000) / (110 - 100), printed to the unit
+    assert abs(eta - 10.0 * (0.5916 - 0.51) / 0.01) <= 0.5  # printed to the second
