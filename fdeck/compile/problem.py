@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -40,6 +41,11 @@ class StepPlan:
     # ``selective_target_dt``; m_e above is rho_base's); ``added_mass`` is (tr(M) + tr(dM)) / tr(M_physical) - 1
     selective: list[np.ndarray] | None = None
     cg: tuple[float, int] = (1e-4, 200)  # (relative tolerance, iteration cap) of the per-cycle solve
+
+    def translational(self, i: int) -> np.ndarray | None:
+        """(n_el,) densities of group i's translational (lumped) mass under selective scaling, rho / (1 + beta);
+        None for a step without (the densities are then ``rho[i]`` throughout)."""
+        return None if self.selective is None else self.rho[i] / (1.0 + self.selective[i])
 
 
 @dataclass
@@ -90,6 +96,7 @@ class Context:
         self._surface = None
         self.base = Path(".")  # folder of the deck file (files a deck names are relative to it)
         self.tools: dict = {}  # rigid tools built so far, by name (``effects.tool``)
+        self.effects: list = []  # effects built so far (compile_deck's list)
 
     def node_set(self, name: str) -> np.ndarray:
         if name not in self.mesh.node_sets:
@@ -264,14 +271,19 @@ def nodal_mass(groups: list, n_node: int, rho: list[np.ndarray]) -> np.ndarray:
     return lumped(groups, n_node, rho, lambda g, r: g.mass(r))
 
 
-def rest_dt(group, rho: np.ndarray, effects=()) -> np.ndarray:
+def rest_dt(group, rho: np.ndarray, effects=(), translational: np.ndarray | None = None) -> np.ndarray:
     """(n_el,) rest stable steps [s] of a group's elements with densities rho, lowered by every effect acting on that
     group with a stiffness of its own (an effect whose ``group`` is this one and whose ``rest_dt`` gives steps,
-    e.g. fibre bending)."""
+    e.g. fibre bending). ``translational``: under selective mass scaling, the densities (n_el,) of the translational
+    (lumped) mass, rho / (1 + beta); an effect whose stiffness acts on element rotations (``own_omega2``) then
+    counts against that mass only, as selective mass leaves rotations as they are."""
     dt = group.rest_dt(rho)
     for e in effects:
         if e.group is group:
-            own = e.rest_dt(rho)
+            if translational is not None and hasattr(e, "own_omega2"):
+                own = 2.0 / np.sqrt((2.0 / group.rest_dt(rho)) ** 2 + e.own_omega2(translational))
+            else:
+                own = e.rest_dt(rho)
         elif any(p is group for p in getattr(e.group, "parts", ())):  # over the subcycling blocks of a section
             own = e.rest_dt(e.group.with_part_rho(group, rho))
             own = None if own is None else own[e.group.slice(group)]
@@ -280,6 +292,36 @@ def rest_dt(group, rho: np.ndarray, effects=()) -> np.ndarray:
         if own is not None:
             dt = np.minimum(dt, own)
     return dt
+
+
+def selective_density(group, base: np.ndarray, target: float, safety: float, effects=()) -> np.ndarray:
+    """(n_el,) densities rho_base (1 + beta_e) whose element steps reach ``target`` [s] (the stable step, so
+    target / safety per element) by selective mass on top of the translational densities base (n_el,).
+
+    The element's continuum frequency omega_g^2 = (2 / dt_g)^2 divides by 1 + beta (the added mass sits on its
+    deformation modes, ``engine.selective_mass``); an effect's own stiffness on element rotations (fibre bending's
+    hinges, ``own_omega2``) does not, so the element step 2 / sqrt(omega_g^2 / (1 + beta) + omega_b^2) reaches the
+    target where omega_b is below the target's frequency omega_t, with 1 + beta = omega_g^2 / (omega_t^2 - omega_b^2).
+    Raises ``Unreachable`` (the largest reachable target) where some element's own omega_b alone is at or above
+    omega_t. Without such effects: (target / (safety dt_g))^2, conventional mass scaling's factor."""
+    own = [e for e in effects if e.group is group and hasattr(e, "own_omega2")]
+    if not own:
+        return base * np.maximum(1.0, (target / (safety * group.rest_dt(base))) ** 2)
+    wg2 = (2.0 / group.rest_dt(base)) ** 2
+    wb2 = sum((e.own_omega2(base) for e in own), np.zeros_like(wg2))
+    wt2 = (2.0 * safety / target) ** 2
+    room = wt2 - wb2
+    if not np.all(room > 0.0):
+        raise Unreachable(safety * 2.0 / math.sqrt(float(wb2.max())), [e.name for e in own])
+    return base * np.maximum(1.0, wg2 / room)
+
+
+class Unreachable(ValueError):
+    """A selective target at or above the step an effect's stiffness on rotations allows with any added mass."""
+
+    def __init__(self, limit: float, by: list[str]):
+        super().__init__(limit, by)
+        self.limit, self.by = limit, by
 
 
 def plan_steps(deck: Deck, groups: list, physical_mass: np.ndarray, effects=()) -> list[StepPlan]:
@@ -298,9 +340,10 @@ def plan_steps(deck: Deck, groups: list, physical_mass: np.ndarray, effects=()) 
                 rho[i] = g.rho * np.maximum(1.0, (ms.target_dt / (s.dt_safety * dt0)) ** 2)
         selective = None
         if ms is not None and ms.is_selective:
-            stiff = sorted({e.name for e in effects if e.group is not None and e.rest_dt(e.group.rho) is not None})
-            if stiff:  # their stiffness turns whole elements, which the added mass leaves as they are
-                key = "selective" if ms.selective else "selective_target_dt"
+            stiff = sorted({e.name for e in effects if e.group is not None and not hasattr(e, "own_omega2")
+                            and e.rest_dt(e.group.rho) is not None})
+            key = "selective" if ms.selective else "selective_target_dt"
+            if stiff:  # a stiffness that turns whole elements in a way the planner cannot bound
                 raise CompileError([(("steps", len(plans), "mass_scaling", key), "selective mass scaling "
                                      "adds no mass to element rotations, which section effects with a stiffness "
                                      f"of their own act on ({', '.join(stiff)}): their step would not grow; use "
@@ -309,9 +352,18 @@ def plan_steps(deck: Deck, groups: list, physical_mass: np.ndarray, effects=()) 
             # `selective_target_dt`; rho then reaches the target element steps by mass on the deformation modes only
             # (closed form: the element's deformation eigenvalues divide by 1 + beta, see engine.selective_mass)
             base = [g.rho for g in groups] if ms.selective else rho
-            if ms.selective_target_dt is not None:
-                rho = [b * np.maximum(1.0, (ms.selective_target_dt / (s.dt_safety * rest_dt(g, b, effects))) ** 2)
-                       for g, b in zip(groups, base)]
+            target = ms.selective_target
+            if target is not None:
+                try:
+                    rho = [selective_density(g, b, target, s.dt_safety, effects) for g, b in zip(groups, base)]
+                except Unreachable as exc:
+                    raise CompileError([(("steps", len(plans), "mass_scaling",
+                                          "target_dt" if ms.selective else key),
+                                         f"selective target {target:.4g} s is out of reach: the stiffness of "
+                                         f"{', '.join(exc.by)} on element rotations, which selective mass leaves "
+                                         f"as they are, allows at most {exc.limit:.4g} s with any added mass; ask "
+                                         "for less (the added mass grows without bound as the target nears that)")]
+                                       ) from None
             selective = [r / b - 1.0 for r, b in zip(rho, base)]
             mass = nodal_mass(groups, n_node, base)
             inertia = nodal_inertia(groups, n_node, base) if rotational else None
@@ -365,6 +417,7 @@ def compile_deck(deck: Deck, base: Path = Path(".")) -> Problem:
     ctx = Context(deck, mesh, groups, rotations, mass)
     ctx.base = base
     effects, problems = [], []
+    ctx.effects = effects  # built so far: step settings (built last) may read the section add-ons
     for i, sec in enumerate(deck.sections):  # section add-ons act on that section's groups
         cards = [(("sections", i, "effects", j), card) for j, card in enumerate(getattr(sec, "effects", []))]
         cards += _material_effects(deck, i, cards, problems)

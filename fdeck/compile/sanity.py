@@ -154,8 +154,8 @@ def step_dts(problem) -> list[float]:
     out = []
     for plan in problem.steps:
         with np.errstate(all="ignore"):
-            dts = [float(np.min(rest_dt(g, rho, problem.effects))) for g, rho in zip(problem.groups, plan.rho)
-                   if len(g.conn)]
+            dts = [float(np.min(rest_dt(g, rho, problem.effects, plan.translational(i))))
+                   for i, (g, rho) in enumerate(zip(problem.groups, plan.rho)) if len(g.conn)]
         out.append(plan.dt_safety * min(dts) if dts else math.inf)
     return out
 

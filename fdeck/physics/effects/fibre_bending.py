@@ -455,6 +455,8 @@ class FibreBendingEffect(Effect):
         self.dchi_rest, self.kS_rest = self.dchi.copy(), self.kS.copy()
         self._energy = 0.0
         self._mass, self._mass_rho = None, None
+        self.group_index = None  # index of ``group`` in the problem's groups (set by ``build``; None for a view)
+        self._beta = None  # (n_el,) selective mass factors of the current step, or None
 
     def _evaluate(self, x):
         tangents(x, self.conn, self.G, self.t, self.nrm, self.cn)
@@ -471,11 +473,21 @@ class FibreBendingEffect(Effect):
         """Stored bending energy [mJ] at the last ``add_force``."""
         return (self._energy,)
 
+    def begin_step(self, index: int, plan) -> None:
+        """Under selective mass scaling the hinges see the translational mass only: the added mass sits on each
+        element's deformation modes, and the hinges turn whole elements (``own_omega2``)."""
+        if plan.selective is not None and self.group_index is None:
+            raise RuntimeError("selective mass scaling with fibre bending on subcycling blocks")  # refused earlier
+        self._beta = None if plan.selective is None else plan.selective[self.group_index]
+        self._mass_rho = None
+
     def nodal_mass(self) -> np.ndarray:
         """(n_node,) lumped mass of this group's elements [t] with the group's current density (mass scaling
-        included); nodes shared with other groups get only this group's share, which errs on the safe side."""
+        included; under selective scaling its translational part, rho / (1 + beta)); nodes shared with other groups
+        get only this group's share, which errs on the safe side."""
         if self._mass_rho is not self.group.rho:
-            self._mass, self._mass_rho = self._lump(self.group.mass(self.group.rho)), self.group.rho
+            rho = self.group.rho if self._beta is None else self.group.rho / (1.0 + self._beta)
+            self._mass, self._mass_rho = self._lump(self.group.mass(rho)), self.group.rho
         return self._mass
 
     def _lump(self, m_el: np.ndarray) -> np.ndarray:
@@ -507,6 +519,17 @@ class FibreBendingEffect(Effect):
         element_steps(self.conn, R, m, self.group.rest_dt(rho), out)
         return out
 
+    def own_omega2(self, rho: np.ndarray) -> np.ndarray:
+        """(n_el,) the hinges' own squared frequency bound omega_b^2 [1/s^2] per element at rest (the largest R / m
+        of its nodes, module docstring) against the lumped mass of densities rho (n_el,) [t/mm^3]. The hinges turn
+        whole elements, on which selective mass adds nothing: with it, rho is the translational density and the
+        element step 2 / sqrt(omega_g^2 / (1 + beta) + omega_b^2) (``compile.problem.selective_density``)."""
+        m = self._lump(self.group.mass(rho))
+        rows, R = np.zeros_like(self.rows), np.zeros_like(self.R)
+        element_rows(self.G, self.el_hinge, self.dchi_rest, self.kS_rest, rows)
+        gather_rows(rows, self.ptr, self.slots, R)
+        return (R / m)[self.conn].max(axis=1)
+
     def curvatures(self) -> dict[str, np.ndarray]:
         """Current hinge curvatures [1/mm] per family: name -> (n_hinge_of_family, 2 levels)."""
         return {FAMILIES[i]: self.chi[self.fam == i] for i in range(2) if (self.fam == i).any()}
@@ -536,8 +559,9 @@ def build(card: FibreBending, ctx) -> FibreBendingEffect:
     if len(left) == 0:
         raise CompileError([(ctx.path, f"no two elements of {g.name} are neighbours along a bending family: "
                              "fibre bending needs at least two elements along warp or weft")])
-    return FibreBendingEffect(f"fibre_bending:{g.name}", g, ctx.X, geo, left, right, fam, laws,
-                              card.thickness)
+    effect = FibreBendingEffect(f"fibre_bending:{g.name}", g, ctx.X, geo, left, right, fam, laws, card.thickness)
+    effect.group_index = next((i for i, h in enumerate(getattr(ctx, "groups", ())) if h is g), None)
+    return effect
 
 
 register_effect(EffectKind("fibre_bending", build))

@@ -56,6 +56,7 @@ class SelectiveMassEffect(Effect):
         self.tracking_work = 0.0  # [mJ] cumulative
         self.tracked_mass = 0.0  # [t] added by tracking, as the plan counts added mass (trace share)
         self.tracked = np.zeros(self.offsets[-1], bool)  # elements given mass by tracking (ever)
+        self.stiff = []  # effects with a stiffness on element rotations (``own_omega2``): they bound the step too
 
     def begin_step(self, index, plan):
         self.plan = plan
@@ -115,9 +116,12 @@ class SelectiveMassEffect(Effect):
         steps = [i for i, on in enumerate(self.selective) if on]
         if plan.selective is None:
             return f"selective mass scaling in steps {steps} (not in the first)"
+        from fdeck.compile.problem import rest_dt
+
         beta = np.concatenate(plan.selective)
-        dt0 = min(float(g.rest_dt(r / (1.0 + b)).min()) for g, r, b in zip(self.groups, plan.rho, plan.selective))
-        dt1 = min(float(g.rest_dt(r).min()) for g, r in zip(self.groups, plan.rho))
+        base = [plan.translational(i) for i in range(len(self.groups))]
+        dt0 = min(float(rest_dt(g, b, self.stiff).min()) for g, b in zip(self.groups, base))
+        dt1 = min(float(rest_dt(g, r, self.stiff, b).min()) for g, r, b in zip(self.groups, plan.rho, base))
         dt0, dt1 = dt0 * plan.dt_safety, dt1 * plan.dt_safety
         tol, cap = plan.cg
         tracked = [i for i, t in enumerate(self.targets) if t is not None]
@@ -146,10 +150,19 @@ def build(cards: list, ctx) -> SelectiveMassEffect | None:
             if not g.solid:
                 problems.append((path, f"selective mass scaling is for hexahedra; group {g.name} holds "
                                  f"{g.cell_type} elements"))
+    own = [e for e in ctx.effects if hasattr(e, "own_omega2")]  # stiffness on element rotations (fibre bending)
+    for i, on in enumerate(selective):
+        if on and own and cards[i].track_target is not False:
+            problems.append((("steps", i, "mass_scaling", "track_target"), "keeping the selective target during "
+                             f"the step is not available with {', '.join(e.name for e in own)}: its stiffness on "
+                             "element rotations sets the step too, and tracking adds mass to the elements' "
+                             "deformation modes only; leave `track_target` out (the target is met at rest)"))
     if problems:
         raise CompileError(problems)
     targets = [c.tracked_dt if on else None for c, on in zip(cards, selective)]
-    return SelectiveMassEffect(ctx.groups, ctx.X, selective, targets)
+    effect = SelectiveMassEffect(ctx.groups, ctx.X, selective, targets)
+    effect.stiff = own
+    return effect
 
 
 register_effect(EffectKind("mass_scaling", build))
