@@ -70,6 +70,19 @@ def central_gradient(f, x: np.ndarray, h: float) -> np.ndarray:
     return g
 
 
+def central_stiffness(force, x: np.ndarray, h: float) -> np.ndarray:
+    """Symmetrised tangent (3 n x 3 n) of nodal forces force(x) (n, 3) -> (n, 3) at positions x (n, 3) by central
+    differences, column j = (force(x + h e_j) - force(x - h e_j)) / 2h, then (K + K^T) / 2."""
+    n = x.size
+    K = np.zeros((n, n))
+    for j in range(n):
+        xp, xm = x.copy(), x.copy()
+        xp.flat[j] += h
+        xm.flat[j] -= h
+        K[:, j] = (np.ravel(force(xp)) - np.ravel(force(xm))) / (2 * h)
+    return 0.5 * (K + K.T)
+
+
 def symmetric_central_gradient(f, C: np.ndarray, h: float) -> np.ndarray:
     """df/dC of a scalar function of a symmetric 3 x 3 C by central differences, with the symmetric convention:
     C_ij and C_ji perturbed together by h/2 each (by h on the diagonal)."""

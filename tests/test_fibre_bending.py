@@ -21,7 +21,7 @@ from fdeck.physics.effects.fibre_bending import bending_law, build, pack_law
 from fdeck.physics.elements.hex8 import Hex8Group
 from fdeck.registry import CARDS, MATERIALS
 
-from helpers import central_gradient, digests_on_one_and_two_threads, run_data, stored_energy
+from helpers import central_gradient, central_stiffness, digests_on_one_and_two_threads, run_data, stored_energy
 
 pytestmark = pytest.mark.conformance
 
@@ -228,15 +228,7 @@ def test_stable_step_bounds_the_highest_bending_frequency(state):
     x = X if state == "flat" else cylinder(X, 12.0) + 0.05 * np.random.default_rng(9).normal(size=X.shape)
     forces(eff, x)
     dt_est = eff.stable_dt()
-    n = 3 * len(x)
-    K = np.zeros((n, n))
-    h = 1e-6
-    for j in range(n):
-        xp, xm = x.copy(), x.copy()
-        xp.flat[j] += h
-        xm.flat[j] -= h
-        K[:, j] = (forces(eff, xp) - forces(eff, xm)).ravel() / (2 * h)
-    K = 0.5 * (K + K.T)
+    K = central_stiffness(lambda y: forces(eff, y), x, 1e-6)
     m = np.repeat(lumped_mass(g, len(x)), 3)
     omega_max = np.sqrt(eigh(K, np.diag(m), eigvals_only=True).max())
     ratio = dt_est / (2.0 / omega_max)

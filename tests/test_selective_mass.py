@@ -14,7 +14,7 @@ from fdeck.compile.errors import CompileError
 from fdeck.compile.problem import compile_deck
 from fdeck.deck.model import Deck
 from fdeck.engine import solver
-from helpers import deck_data, digests_on_one_and_two_threads
+from helpers import central_stiffness, deck_data, digests_on_one_and_two_threads
 
 RHO, E, NU = 7.8e-9, 210000.0, 0.3
 STEEL = {"steel": {"type": "linear_elastic", "density": RHO, "youngs_modulus": E, "poisson_ratio": NU}}
@@ -342,24 +342,16 @@ def test_selective_with_fibre_bending_bounds_the_exact_critical_step():
     fb.begin_step(0, plan)
     fb.add_force(0.0, p.X, np.zeros_like(p.X), np.zeros_like(p.X))
     assert fb.stable_dt() == pytest.approx(estimate, rel=1e-12)
-    X, n = p.X, 3 * p.n_node
-    v = np.zeros_like(X)
+    v = np.zeros_like(p.X)
 
     def force(x):
         f = np.zeros_like(x)
         g.update(x, v)
         g.add_forces(f)
         fb.add_force(0.0, x, v, f)
-        return f.ravel()
+        return f
 
-    K = np.zeros((n, n))
-    h = 1e-6
-    for j in range(n):
-        xp, xm = X.copy(), X.copy()
-        xp.flat[j] += h
-        xm.flat[j] -= h
-        K[:, j] = (force(xp) - force(xm)) / (2 * h)
-    K = 0.5 * (K + K.T)
+    K = central_stiffness(force, p.X, 1e-6)
     eff = selective_effect(p)
     M = np.diag(np.repeat(plan.mass, 3)) + added_mass_matrix(eff, p.n_node)
     exact = 2.0 / np.sqrt(eigh(K, M, eigvals_only=True).max())
