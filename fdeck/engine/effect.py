@@ -18,7 +18,10 @@ An effect is built by the compiler only when the deck names it. Per cycle n -> n
 
 A section add-on names the element ``group`` it acts on; if it has a stiffness of its own, ``rest_dt(rho)`` gives
 the rest steps (n_el,) [s] of that group's elements with it, for mass scaling and ``fdeck info``, and
-``element_dt()`` their current steps after its ``stable_dt`` (for subcycling's levels; None otherwise).
+``element_dt()`` their current steps after its ``stable_dt`` (for subcycling's levels; None otherwise). A stiffness
+that turns whole elements (fibre bending's hinges) also gives ``own_omega2(rho)``, its own squared frequency bound
+per element against the lumped mass of densities rho, which selective mass scaling counts against the
+translational mass only (``compile.problem.selective_density``).
 
 Ledger: ``terms`` (tuple of ``engine.ledger.Term``) and ``term_values()`` give the effect's named energies and
 history columns (see ``engine.ledger``). Checkpoints save an effect's mutable state by walking its attributes

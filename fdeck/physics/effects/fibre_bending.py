@@ -512,12 +512,7 @@ class FibreBendingEffect(Effect):
     def rest_dt(self, rho: np.ndarray) -> np.ndarray:
         """(n_el,) element steps [s] at rest, bending and continuum together, with the group's densities rho
         (n_el,) [t/mm^3]: what mass scaling to a target step and ``fdeck info`` need before the run."""
-        m = self._lump(self.group.mass(rho))
-        rows, R, out = np.zeros_like(self.rows), np.zeros_like(self.R), np.zeros(len(self.conn))
-        element_rows(self.G, self.el_hinge, self.dchi_rest, self.kS_rest, rows)
-        gather_rows(rows, self.ptr, self.slots, R)
-        element_steps(self.conn, R, m, self.group.rest_dt(rho), out)
-        return out
+        return 2.0 / np.sqrt(self.own_omega2(rho) + (2.0 / self.group.rest_dt(rho)) ** 2)
 
     def own_omega2(self, rho: np.ndarray) -> np.ndarray:
         """(n_el,) the hinges' own squared frequency bound omega_b^2 [1/s^2] per element at rest (the largest R / m
