@@ -334,7 +334,7 @@ def plan_steps(deck: Deck, groups: list, physical_mass: np.ndarray, effects=()) 
         ms = s.mass_scaling
         if ms is not None and ms.factor is not None:
             rho = [r * ms.factor for r in rho]
-        elif ms is not None:
+        elif ms is not None and not ms.selective:  # a selective target_dt is met below, by selective_density
             for i, g in enumerate(groups):
                 dt0 = rest_dt(g, g.rho, effects)  # rest stable step per element
                 rho[i] = g.rho * np.maximum(1.0, (ms.target_dt / (s.dt_safety * dt0)) ** 2)
