@@ -280,9 +280,8 @@ def info(deck: Path = typer.Argument(..., help="Deck file.")):
         dts = []
         for i, (g, rho) in enumerate(zip(p.groups, plan.rho)):
             dts.append(plan.dt_safety * float(np.min(rest_dt(g, rho, p.effects, plan.translational(i)))))
+            g.set_density(rho)  # as the engine does at the step's start, before the effects' bounds below
         dt, by = min(dts), ""
-        for g, rho in zip(p.groups, plan.rho):  # as the engine does at the step's start, before the effects'
-            g.set_density(rho)
         for e in p.effects:  # effects' own bounds at the step's start (contact springs, a tool's travel, ...)
             e.begin_step(k, plan)
             if plan.dt_safety * e.stable_dt() < dt:

@@ -277,11 +277,12 @@ def rest_dt(group, rho: np.ndarray, effects=(), translational: np.ndarray | None
     e.g. fibre bending). ``translational``: under selective mass scaling, the densities (n_el,) of the translational
     (lumped) mass, rho / (1 + beta); an effect whose stiffness acts on element rotations (``own_omega2``) then
     counts against that mass only, as selective mass leaves rotations as they are."""
-    dt = group.rest_dt(rho)
+    dt = continuum = group.rest_dt(rho)
     for e in effects:
         if e.group is group:
-            if translational is not None and hasattr(e, "own_omega2"):
-                own = 2.0 / np.sqrt((2.0 / group.rest_dt(rho)) ** 2 + e.own_omega2(translational))
+            if hasattr(e, "own_omega2"):  # squared frequencies add (the effect's own rest_dt, with rho for both)
+                own = 2.0 / np.sqrt(e.own_omega2(rho if translational is None else translational)
+                                    + (2.0 / continuum) ** 2)
             else:
                 own = e.rest_dt(rho)
         elif any(p is group for p in getattr(e.group, "parts", ())):  # over the subcycling blocks of a section

@@ -41,7 +41,8 @@ class SelectiveMassEffect(Effect):
     tracking_terms = (Term("mass_tracking_work", WORK), Term("tracked_added_mass", VALUE),
                       Term("tracked_elements", VALUE))
 
-    def __init__(self, groups: list, X: np.ndarray, selective: list[bool], targets: list[float | None]):
+    def __init__(self, groups: list, X: np.ndarray, selective: list[bool], targets: list[float | None],
+                 stiff: list = ()):
         self.solver = SelectiveMass([g.conn for g in groups], X)
         self.groups = groups
         self.selective = selective
@@ -56,7 +57,7 @@ class SelectiveMassEffect(Effect):
         self.tracking_work = 0.0  # [mJ] cumulative
         self.tracked_mass = 0.0  # [t] added by tracking, as the plan counts added mass (trace share)
         self.tracked = np.zeros(self.offsets[-1], bool)  # elements given mass by tracking (ever)
-        self.stiff = []  # effects with a stiffness on element rotations (``own_omega2``): they bound the step too
+        self.stiff = list(stiff)  # effects with a stiffness on element rotations (``own_omega2``): step bounds too
 
     def begin_step(self, index, plan):
         self.plan = plan
@@ -160,9 +161,7 @@ def build(cards: list, ctx) -> SelectiveMassEffect | None:
     if problems:
         raise CompileError(problems)
     targets = [c.tracked_dt if on else None for c, on in zip(cards, selective)]
-    effect = SelectiveMassEffect(ctx.groups, ctx.X, selective, targets)
-    effect.stiff = own
-    return effect
+    return SelectiveMassEffect(ctx.groups, ctx.X, selective, targets, own)
 
 
 register_effect(EffectKind("mass_scaling", build))
