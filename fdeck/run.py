@@ -109,6 +109,27 @@ def assemble_cells(problem) -> dict[str, np.ndarray]:
     return out
 
 
+def write_end_tables(problem, paths, out_dir: Path, x) -> list[str]:
+    """Write the path tables (``paths``: PathTable list) and, if the deck asks, fibres.csv at positions x
+    (n_node, 3) into out_dir; the groups must hold the state at x. Returns the file names written."""
+    from fdeck.io.tables import plot_xy, write_table
+    from fdeck.physics.measures.tables import fibre_table
+
+    written = []
+    with np.errstate(invalid="ignore", divide="ignore"):
+        for p in paths:
+            cols = p.columns(x)
+            written.append(write_table(out_dir / f"path_{p.name}.csv", cols).name)
+            png = out_dir / f"path_{p.name}.png"
+            if plot_xy(png, cols["arc_length"], cols["shear_angle"], "arc length along the path [mm]",
+                       "shear angle [deg]", f"path {p.name}"):
+                written.append(png.name)
+        if problem.deck.output.fibre_table:
+            table = fibre_table(problem.cells, x, assemble_cells(problem))
+            written.append(write_table(out_dir / "fibres.csv", table).name)
+    return written
+
+
 class Outputs(solver.Sink):
     """Frame series, history file and progress reporting for one run, and the end-of-run tables
     (``output.paths``, ``output.fibre_table``).
@@ -165,20 +186,7 @@ class Outputs(solver.Sink):
 
     def tables_at_end(self, x):
         """Write the end-of-run tables at positions x (n_node, 3), the last frame's; the groups hold that state."""
-        from fdeck.io.tables import plot_xy, write_table
-        from fdeck.physics.measures.tables import fibre_table
-
-        with np.errstate(invalid="ignore", divide="ignore"):
-            for p in self.paths:
-                cols = p.columns(x)
-                self.tables.append(write_table(self.out_dir / f"path_{p.name}.csv", cols).name)
-                png = self.out_dir / f"path_{p.name}.png"
-                if plot_xy(png, cols["arc_length"], cols["shear_angle"], "arc length along the path [mm]",
-                           "shear angle [deg]", f"path {p.name}"):
-                    self.tables.append(png.name)
-            if self.problem.deck.output.fibre_table:
-                table = fibre_table(self.problem.cells, x, assemble_cells(self.problem))
-                self.tables.append(write_table(self.out_dir / "fibres.csv", table).name)
+        self.tables += write_end_tables(self.problem, self.paths, self.out_dir, x)
 
     def history(self, row):
         self.hist.write_row(row)

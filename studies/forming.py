@@ -3,6 +3,7 @@
     python studies/forming.py render RESULT_DIR OUT.png [--field shear_angle] [--view top|side] [--title T]
     python studies/forming.py force RESULT_DIR... OUT.png [--tool punch]   # punch force against stroke
     python studies/forming.py paths PATH_NAME RESULT_DIR... OUT.png [--labels L...]  # shear along a path, runs compared
+    python studies/forming.py retable DECK RESULT_DIR OUT_DIR  # the deck's paths and fibre table from the last frame
 
 `render` reads the last blank frame of a run's `.pvd` (the blank is part 0; tools are other parts), draws every
 element as the polygon of its nodes projected on the view plane (their 2-D convex hull), farthest first, so the
@@ -11,6 +12,10 @@ angle in degrees by default). `force` plots the history's `tool_<tool>_force_z` 
 `paths` plots the final shear angle along the path `PATH_NAME` (``output.paths``) of several runs (two meshes, say)
 and prints, for each run after the first, the largest difference from the first at the first run's sample points
 (linear interpolation in arc length; each run's angle is its elements' own, constant per element).
+`retable` writes the end-of-run tables (``output.paths``, ``fibres.csv``) of DECK as they would be at the end of
+the run in RESULT_DIR, from its last frame's displacements: for a path added or changed after an hours-long run.
+Exact for hyperelastic hexahedral blanks (their fields depend on the positions only); shells with rotational
+degrees of freedom are refused (the frame does not hold their directors).
 """
 
 from __future__ import annotations
@@ -149,6 +154,30 @@ def paths(name: str, result_dirs, png, labels=None) -> list[float]:
     return out
 
 
+def retable(deck_path, result_dir, out_dir) -> list[str]:
+    """Write DECK's end-of-run tables at the last frame of ``result_dir`` into ``out_dir``; returns their names."""
+    import meshio
+
+    from fdeck.compile.problem import compile_deck
+    from fdeck.deck.read import read_deck
+    from fdeck.physics.measures.tables import PathTable
+    from fdeck.run import write_end_tables
+
+    deck_path = Path(deck_path)
+    problem = compile_deck(read_deck(deck_path)[0], deck_path.parent)
+    if problem.rotations is not None:
+        raise SystemExit("retable: shells with rotations need their directors, which the frames do not hold")
+    u = meshio.read(last_blank_frame(Path(result_dir))).point_data["displacement"]
+    if u.shape != problem.X.shape:
+        raise SystemExit(f"retable: the frame has {len(u)} nodes, the deck {len(problem.X)}: not this deck's run")
+    x = problem.X + u
+    for g in problem.groups:
+        g.update(x, np.zeros_like(x))
+    Path(out_dir).mkdir(parents=True, exist_ok=True)
+    paths = [PathTable(c, problem.groups, problem.X, problem.cells) for c in problem.deck.output.paths]
+    return write_end_tables(problem, paths, Path(out_dir), x)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = ap.add_subparsers(dest="cmd", required=True)
@@ -165,9 +194,15 @@ def main() -> None:
     p.add_argument("name", help="path name (output.paths[].name)")
     p.add_argument("paths", nargs="+", help="result folders (the first is the reference), then the PNG")
     p.add_argument("--labels", nargs="+", help="legend label per result folder (default: folder names)")
+    t = sub.add_parser("retable")
+    t.add_argument("deck")
+    t.add_argument("result_dir")
+    t.add_argument("out_dir")
     a = ap.parse_args()
     if a.cmd == "render":
         print(render(a.result_dir, a.png, a.field, a.view, a.title))
+    elif a.cmd == "retable":
+        print(" ".join(retable(a.deck, a.result_dir, a.out_dir)))
     elif a.cmd == "force":
         force(a.paths[:-1], a.paths[-1], a.tool)
     else:

@@ -120,6 +120,91 @@ def test_path_point_off_the_mesh_maps_to_the_nearest_element_with_its_distance(t
     np.testing.assert_allclose(t["x"], np.minimum(t["X"], 20.0), atol=1e-9)
 
 
+def test_path_through_the_thickness_is_the_layer_mean_of_a_shear_varying_through_it(tmp_path):
+    """Requirement: ``through_thickness`` averages the shear angle over the blank's thickness. A 3WEAVE block
+    20 x 10 x 4 mm, 4 layers (warp x, weft y), under x = X + (a + b Z) Y e_x: the weft at height Z turns by
+    atan(a + b Z), so the through-thickness mean is (1/4) int_0^4 atan(a + b Z) dZ (closed form below), min and
+    max the bottom and top layers' angles, and the plain path on the mid-plane (a layer interface) gives one of
+    the two middle layers only. Tolerance 0.05 deg: an element reports its Gauss points' mean direction, which
+    differs from the mean of the angle over its layer by about |d2 atan/dZ2| h^2 / 24 = 0.6 b^2 / 24 rad
+    = 0.01 deg at most with h = 1 mm; a layer's centre value atan(a + b Z_c) differs from the layer mean by the
+    same order, hence the same tolerance for min and max."""
+    a, b = 0.2, 0.1
+    deck = _block((20.0, 10.0, 4.0), (10, 5, 4), {"paths": [
+        {"name": "mean", "points": [[3.0, 5.0, 2.0], [17.0, 5.0, 2.0]], "samples": 8,
+         "through_thickness": {"axis": [0, 0, 1], "span": [0.0, 4.0], "samples": 8}},
+        {"name": "plain", "points": [[3.0, 5.0, 2.0], [17.0, 5.0, 2.0]], "samples": 8}]})
+    deck["materials"] = {"f": {"type": "3weave"}}
+    deck["sections"] = [{"material": "f", "elements": "all", "formulation": "full"}]
+    p = _compile(deck)
+    x = p.X.copy()
+    x[:, 0] += (a + b * p.X[:, 2]) * p.X[:, 1]
+    _update(p, x)
+    out = Outputs(p, tmp_path, "t", lambda *args: None)
+    out.tables_at_end(x)
+    out.close()
+    t = read_table(tmp_path / "path_mean.csv")
+
+    def prim(g):  # antiderivative of atan(g) dg
+        return g * math.atan(g) - 0.5 * math.log(1.0 + g * g)
+
+    exact = math.degrees((prim(a + 4 * b) - prim(a)) / (4 * b))
+    np.testing.assert_allclose(t["shear_angle"], exact, atol=0.05)
+    np.testing.assert_allclose(t["shear_angle_min"], math.degrees(math.atan(a + 0.5 * b)), atol=0.05)
+    np.testing.assert_allclose(t["shear_angle_max"], math.degrees(math.atan(a + 3.5 * b)), atol=0.05)
+    plain = read_table(tmp_path / "path_plain.csv")["shear_angle"]
+    middle = [math.degrees(math.atan(a + z * b)) for z in (1.5, 2.5)]
+    assert all(min(abs(v - m) for m in middle) < 0.05 for v in plain)
+    # each plain sample is one layer (19.3 or 24.2 deg, whichever element the tie on the interface picks), more than
+    # 2 deg from the mean: what the option is for
+    assert np.all(np.abs(plain - exact) > 2.0)
+
+
+def test_retable_from_the_last_frame_gives_the_tables_the_run_wrote(tmp_path):
+    """Requirement: ``studies/forming.py retable`` rebuilds a deck's end-of-run tables from a finished run's last
+    frame (for a path added after an hours-long run). A 3WEAVE strip stretched and sheared by its end nodes, run
+    with `fdeck run`'s engine: retable with the same deck gives the run's own path and fibre tables. Tolerance
+    1e-9 (deg, mm): the frame stores the displacements in float64 (base64 binary VTU), so the only difference is
+    the round-off of X + (x - X)."""
+    import importlib.util
+
+    from fdeck.deck.read import read_deck
+    from fdeck.run import execute
+
+    text = """
+mesh: {block: {size: [20, 10, 2], divisions: [4, 2, 2]}}
+materials: {f: {type: 3weave}}
+sections: [{elements: all, material: f}]
+boundary:
+  - {type: fixed, nodes: xmin}
+  - {type: velocity, nodes: xmax, dofs: [x], value: 200.0}
+  - {type: velocity, nodes: xmax, dofs: [y], value: 300.0}
+steps: [{duration: 0.002, mass_scaling: {factor: 100}}]
+output:
+  frames: 2
+  paths: [{name: mid, points: [[1, 5, 1], [19, 5, 1]], samples: 9,
+           through_thickness: {span: [0, 2], samples: 4}}]
+  fibre_table: true
+"""
+    deck_path = tmp_path / "strip.yaml"
+    deck_path.write_text(text)
+    deck, _, _ = read_deck(deck_path)
+    code, _ = execute(deck, tmp_path, tmp_path / "run", "strip", str(deck_path), echo=lambda *a: None)
+    assert code == 0
+    spec = importlib.util.spec_from_file_location("forming", Path(__file__).parents[1] / "studies" / "forming.py")
+    forming = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(forming)
+    names = forming.retable(deck_path, tmp_path / "run", tmp_path / "again")
+    assert {"path_mid.csv", "fibres.csv"} <= set(names)
+    for table in ("path_mid.csv", "fibres.csv"):
+        ran, again = read_table(tmp_path / "run" / table), read_table(tmp_path / "again" / table)
+        assert list(ran) == list(again)
+        for k in ran:
+            np.testing.assert_allclose(again[k], ran[k], rtol=0, atol=1e-9, err_msg=f"{table}: {k}")
+    sheared = read_table(tmp_path / "run" / "path_mid.csv")["shear_angle"]
+    assert np.abs(sheared).max() > 1.0  # the state compared is a deformed one, not the rest state
+
+
 def test_path_deck_errors_are_located():
     """Requirement: a path with coinciding corners or a name that is not a file name part, or two paths of one
     name, is a located validation error."""
@@ -127,7 +212,11 @@ def test_path_deck_errors_are_located():
 
     for paths, where in [([{"name": "a", "points": [[0, 0, 0], [0, 0, 0]]}], "points 0 and 1 coincide"),
                          ([{"name": "a/b", "points": [[0, 0, 0], [1, 0, 0]]}], "pattern"),
-                         ([{"name": "a", "points": [[0, 0, 0], [1, 0, 0]]}] * 2, "path names repeated")]:
+                         ([{"name": "a", "points": [[0, 0, 0], [1, 0, 0]]}] * 2, "path names repeated"),
+                         ([{"name": "a", "points": [[0, 0, 0], [1, 0, 0]],
+                            "through_thickness": {"span": [1.0, 1.0]}}], "two different coordinates"),
+                         ([{"name": "a", "points": [[0, 0, 0], [1, 0, 0]],
+                            "through_thickness": {"axis": [0, 0, 0], "span": [0.0, 1.0]}}], "zero vector")]:
         with pytest.raises(ValidationError) as info:
             Deck.model_validate(_plate((20.0, 10.0), 2.0, {"paths": paths}))
         assert where in str(info.value) and "output" in str(info.value)

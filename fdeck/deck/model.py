@@ -219,6 +219,26 @@ class Step(Card):
                                 "one: a collapsing step means a crushed element or a runaway contact.")
 
 
+class PathStack(Card):
+    """Through-thickness averaging of a path: each path sample becomes ``samples`` points evenly spread over
+    ``span`` along ``axis`` (midpoints of equal sub-intervals, reference coordinates), and the sample's shear angle
+    is the mean over the elements holding them. Why: on a layered blank the mid-plane is a layer interface (which
+    element a point on it falls into is a tie), and meshes with different layer counts are compared on the same
+    quantity when every layer is weighted by its thickness (choose ``samples`` a multiple of each mesh's layers)."""
+
+    axis: Vector = Field([0.0, 0.0, 1.0], description="Thickness direction (reference), normalised by fdeck.")
+    span: tuple[float, float] = Field(description="Coordinates along axis of the blank's two faces [mm] (reference).")
+    samples: int = Field(8, ge=1, description="Points through the thickness per path sample.")
+
+    @model_validator(mode="after")
+    def _proper(self):
+        if sum(a * a for a in self.axis) == 0.0:
+            raise ValueError("axis must not be the zero vector")
+        if self.span[0] == self.span[1]:
+            raise ValueError("span needs two different coordinates (the blank's faces)")
+        return self
+
+
 class OutputPath(Card):
     """A polyline in the reference configuration along which the shear angle is tabulated at the end of the run
     (``path_<name>.csv``, and ``path_<name>.png`` when matplotlib is installed)."""
@@ -227,6 +247,9 @@ class OutputPath(Card):
                       description="File name part: path_<name>.csv (letters, digits, '_', '.', '-').")
     points: list[Vector] = Field(min_length=2, description="Corners of the polyline, reference coordinates [mm].")
     samples: int = Field(100, ge=2, description="Points sampled evenly along the polyline's arc length.")
+    through_thickness: PathStack | None = Field(
+        None, description="Average the shear angle through the blank's thickness at every sample (columns "
+        "shear_angle = mean, shear_angle_min, shear_angle_max over the stack); absent: the element at the point.")
 
     @model_validator(mode="after")
     def _has_length(self):

@@ -3,7 +3,9 @@
 * ``PathTable``: a polyline given in the reference configuration (``output.paths``) sampled evenly along its arc
   length; each sample is located once in its element (``locate``) and followed to the current configuration
   through that element's shape functions; its shear angle is the one of that element (the element holding the
-  sample, or the nearest one; the ``distance`` column says which).
+  sample, or the nearest one; the ``distance`` column says which), or with ``through_thickness`` the mean over a
+  stack of points across the blank's thickness (a layered blank's mid-plane is a layer interface, where "the
+  element holding the sample" is a tie).
 * ``fibre_table``: per element in mesh order, the current centroid, the current unit warp and weft directions and
   the shear angle, for mapping the draped fibre architecture onto a structural model.
 
@@ -29,7 +31,11 @@ def polyline(points, samples: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 class PathTable:
-    """One ``output.paths`` entry over the element groups (located once, in the reference configuration)."""
+    """One ``output.paths`` entry over the element groups (located once, in the reference configuration).
+
+    With ``through_thickness`` each of the n samples carries a stack of k points along the thickness axis
+    (``stack`` (n, k, 3)); the shear angle of a sample is the mean over its stack, and min/max say how much the
+    layers differ. The sample's own point (as the polyline gives it) is still located for the current position."""
 
     def __init__(self, card, groups: list, X: np.ndarray, cells: dict[str, np.ndarray]):
         self.name, self.groups = card.name, groups
@@ -37,26 +43,48 @@ class PathTable:
         self.offset = dict(zip(cells, starts.tolist()))  # first mesh-order index of each cell type
         self.s, self.P = polyline(card.points, card.samples)
         self.where = locate(groups, X, self.P)
+        self.stack = None
+        tt = getattr(card, "through_thickness", None)
+        if tt is not None:
+            a = np.asarray(tt.axis, float) / np.linalg.norm(tt.axis)
+            lo, hi = tt.span
+            c = lo + (np.arange(tt.samples) + 0.5) * (hi - lo) / tt.samples  # midpoints of equal sub-intervals
+            pts = self.P[:, None, :] + (c[None, :] - (self.P @ a)[:, None])[..., None] * a
+            self.stack = pts
+            self.stack_where = locate(groups, X, pts.reshape(-1, 3))
 
-    def columns(self, x: np.ndarray) -> dict[str, np.ndarray]:
-        """Columns at positions x (n_node, 3): arc length [mm], reference point [mm], distance to the element [mm],
-        current point [mm], element (1-based, mesh order as in fibres.csv and the frames), shear angle [deg] (NaN where the
-        element's law has none). Call after the groups were updated at x (their cell fields are read)."""
-        gamma = np.full(len(self.s), np.nan)
-        element = np.zeros(len(self.s), np.int64)
+    def _shear(self, where) -> tuple[np.ndarray, np.ndarray]:
+        """Shear angle [deg] (NaN where the law has none) and element (1-based, mesh order) at located points."""
+        n = len(where.group)
+        gamma = np.full(n, np.nan)
+        element = np.zeros(n, np.int64)
         for gi, g in enumerate(self.groups):
-            sel = np.nonzero(self.where.group == gi)[0]
+            sel = np.nonzero(where.group == gi)[0]
             if not len(sel):
                 continue
-            local, inverse = np.unique(self.where.element[sel], return_inverse=True)
+            local, inverse = np.unique(where.element[sel], return_inverse=True)
             element[sel] = self.offset[g.cell_type] + g.element_index[local][inverse] + 1
             fields = g.cell_fields(local)
             if "shear_angle" in fields:
                 gamma[sel] = fields["shear_angle"][inverse]
+        return gamma, element
+
+    def columns(self, x: np.ndarray) -> dict[str, np.ndarray]:
+        """Columns at positions x (n_node, 3): arc length [mm], reference point [mm], distance to the element [mm],
+        current point [mm], element (1-based, mesh order as in fibres.csv and the frames), shear angle [deg] (NaN where the
+        element's law has none; with ``through_thickness`` the mean over the stack, plus its min and max). Call
+        after the groups were updated at x (their cell fields are read)."""
+        gamma, element = self._shear(self.where)
         cur = self.where.current(self.groups, x)
-        return {"arc_length": self.s, "X": self.P[:, 0], "Y": self.P[:, 1], "Z": self.P[:, 2],
-                "distance": self.where.distance, "x": cur[:, 0], "y": cur[:, 1], "z": cur[:, 2],
-                "element": element, "shear_angle": gamma}
+        out = {"arc_length": self.s, "X": self.P[:, 0], "Y": self.P[:, 1], "Z": self.P[:, 2],
+               "distance": self.where.distance, "x": cur[:, 0], "y": cur[:, 1], "z": cur[:, 2],
+               "element": element, "shear_angle": gamma}
+        if self.stack is not None:
+            g, _ = self._shear(self.stack_where)
+            g = g.reshape(self.stack.shape[:2])
+            out["shear_angle"] = g.mean(axis=1)
+            out["shear_angle_min"], out["shear_angle_max"] = g.min(axis=1), g.max(axis=1)
+        return out
 
 
 def fibre_table(cells: dict[str, np.ndarray], x: np.ndarray, fields: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
