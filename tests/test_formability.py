@@ -145,10 +145,7 @@ def test_path_through_the_thickness_is_the_layer_mean_of_a_shear_varying_through
     out.close()
     t = read_table(tmp_path / "path_mean.csv")
 
-    def prim(g):  # antiderivative of atan(g) dg
-        return g * math.atan(g) - 0.5 * math.log(1.0 + g * g)
-
-    exact = math.degrees((prim(a + 4 * b) - prim(a)) / (4 * b))
+    exact = math.degrees((_atan_primitive(a + 4 * b) - _atan_primitive(a)) / (4 * b))
     np.testing.assert_allclose(t["shear_angle"], exact, atol=0.05)
     np.testing.assert_allclose(t["shear_angle_min"], math.degrees(math.atan(a + 0.5 * b)), atol=0.05)
     np.testing.assert_allclose(t["shear_angle_max"], math.degrees(math.atan(a + 3.5 * b)), atol=0.05)
@@ -158,6 +155,43 @@ def test_path_through_the_thickness_is_the_layer_mean_of_a_shear_varying_through
     # each plain sample is one layer (19.3 or 24.2 deg, whichever element the tie on the interface picks), more than
     # 2 deg from the mean: what the option is for
     assert np.all(np.abs(plain - exact) > 2.0)
+
+
+def _atan_primitive(g):
+    """Antiderivative of atan(g) dg."""
+    return g * math.atan(g) - 0.5 * math.log(1.0 + g * g)
+
+
+def test_path_window_is_the_window_mean_of_a_shear_varying_along_the_path(tmp_path):
+    """Requirement: ``window`` averages the shear angle over a square around every sample. A 3WEAVE block
+    20 x 10 x 2 mm of 2 mm elements under x = X + c X (Y - 5) e_x: the weft turns by atan(c X), so along a path in
+    x the window mean is (1/w) int atan(c X) dX over [X - w/2, X + w/2] = [P(c(X + w/2)) - P(c(X - w/2))] / (c w)
+    (P the antiderivative of atan). Tolerance 0.05 deg: each element holds about its own centroid's angle, off the
+    element mean by |d2 atan(cX)/dX2| h^2 / 24 <= 0.77 c^2 h^2 / 24 rad = 0.005 deg with h = 2 mm, c = 0.05/mm
+    (the window's 8 x 8 points weight the elements by their overlap exactly when w is a multiple of h / 8). The
+    samples lie on element centroids and boundaries; without the window the boundary samples are one element's
+    angle, 1.9-2.6 deg from the window mean."""
+    c, w = 0.05, 4.0
+    xs = [5.0, 6.0, 9.0, 10.0, 13.0, 14.0]  # centroids of 2-mm elements and their shared faces, windows inside
+    deck = _block((20.0, 10.0, 2.0), (10, 5, 1), {"paths": [
+        {"name": "win", "points": [[5.0, 5.0, 1.0], [15.0, 5.0, 1.0]], "samples": 11, "window": w},
+        {"name": "raw", "points": [[5.0, 5.0, 1.0], [15.0, 5.0, 1.0]], "samples": 11}]})
+    deck["materials"] = {"f": {"type": "3weave"}}
+    deck["sections"] = [{"material": "f", "elements": "all", "formulation": "full"}]
+    p = _compile(deck)
+    x = p.X.copy()
+    x[:, 0] += c * p.X[:, 0] * (p.X[:, 1] - 5.0)
+    _update(p, x)
+    out = Outputs(p, tmp_path, "t", lambda *args: None)
+    out.tables_at_end(x)
+    out.close()
+    t, raw = read_table(tmp_path / "path_win.csv"), read_table(tmp_path / "path_raw.csv")
+    exact = np.array([math.degrees((_atan_primitive(c * (X + w / 2)) - _atan_primitive(c * (X - w / 2))) / (c * w))
+                      for X in t["X"]])
+    np.testing.assert_allclose(t["shear_angle"], exact, atol=0.05)
+    assert set(xs) <= set(np.round(t["X"], 9))
+    odd = np.isclose(t["X"] % 2.0, 0.0)  # samples on shared element faces: the raw path takes one element
+    assert np.all(np.abs(raw["shear_angle"][odd] - exact[odd]) > 1.5)
 
 
 def test_retable_from_the_last_frame_gives_the_tables_the_run_wrote(tmp_path):
@@ -216,7 +250,9 @@ def test_path_deck_errors_are_located():
                          ([{"name": "a", "points": [[0, 0, 0], [1, 0, 0]],
                             "through_thickness": {"span": [1.0, 1.0]}}], "two different coordinates"),
                          ([{"name": "a", "points": [[0, 0, 0], [1, 0, 0]],
-                            "through_thickness": {"axis": [0, 0, 0], "span": [0.0, 1.0]}}], "zero vector")]:
+                            "through_thickness": {"axis": [0, 0, 0], "span": [0.0, 1.0]}}], "zero vector"),
+                         ([{"name": "a", "points": [[0, 0, 0], [0, 0, 1]], "window": 2.0}], "thickness axis"),
+                         ([{"name": "a", "points": [[0, 0, 0], [1, 0, 0]], "window": 0.0}], "greater than 0")]:
         with pytest.raises(ValidationError) as info:
             Deck.model_validate(_plate((20.0, 10.0), 2.0, {"paths": paths}))
         assert where in str(info.value) and "output" in str(info.value)

@@ -250,12 +250,26 @@ class OutputPath(Card):
     through_thickness: PathStack | None = Field(
         None, description="Average the shear angle through the blank's thickness at every sample (columns "
         "shear_angle = mean, shear_angle_min, shear_angle_max over the stack); absent: the element at the point.")
+    window: float | None = Field(
+        None, gt=0.0, description="Side [mm] of a square window centred on every sample, aligned with the path, in "
+        "the plane normal to the thickness axis (through_thickness.axis, else z), over which the shear angle is "
+        "averaged (8 x 8 points): a filter of the element-wise field, so that two meshes are compared on the same "
+        "quantity where the shear changes sharply (set it to the coarser mesh's element size); absent: no window.")
 
     @model_validator(mode="after")
     def _has_length(self):
         zero = [i for i in range(1, len(self.points)) if self.points[i] == self.points[i - 1]]
         if zero:
             raise ValueError(f"points {zero[0] - 1} and {zero[0]} coincide: every segment needs a length")
+        if self.window is not None:
+            a = self.through_thickness.axis if self.through_thickness is not None else [0.0, 0.0, 1.0]
+            na = sum(c * c for c in a) ** 0.5
+            for i in range(1, len(self.points)):
+                d = [q - p for p, q in zip(self.points[i - 1], self.points[i])]
+                along = sum(x * y for x, y in zip(d, a)) / na
+                if sum(x * x for x in d) - along * along <= 1e-12 * sum(x * x for x in d):
+                    raise ValueError(f"segment {i - 1}-{i} runs along the thickness axis: its window has no "
+                                     "in-plane direction")
         return self
 
 

@@ -5,7 +5,8 @@
   through that element's shape functions; its shear angle is the one of that element (the element holding the
   sample, or the nearest one; the ``distance`` column says which), or with ``through_thickness`` the mean over a
   stack of points across the blank's thickness (a layered blank's mid-plane is a layer interface, where "the
-  element holding the sample" is a tie).
+  element holding the sample" is a tie), and with ``window`` over a square around the sample (a filter, so two
+  meshes compare the same quantity where the shear changes within an element).
 * ``fibre_table``: per element in mesh order, the current centroid, the current unit warp and weft directions and
   the shear angle, for mapping the draped fibre architecture onto a structural model.
 
@@ -33,9 +34,11 @@ def polyline(points, samples: int) -> tuple[np.ndarray, np.ndarray]:
 class PathTable:
     """One ``output.paths`` entry over the element groups (located once, in the reference configuration).
 
-    With ``through_thickness`` each of the n samples carries a stack of k points along the thickness axis
-    (``stack`` (n, k, 3)); the shear angle of a sample is the mean over its stack, and min/max say how much the
-    layers differ. The sample's own point (as the polyline gives it) is still located for the current position."""
+    With ``through_thickness`` and/or ``window`` each of the n samples carries k averaging points (``stack``
+    (n, k, 3): a stack along the thickness axis, times an 8 x 8 grid over the window); the shear angle of a sample
+    is the mean over them, and min/max say how much they differ. Points beyond the blank take the nearest element
+    (a window hanging over a free edge weights the edge elements more). The sample's own point (as the polyline
+    gives it) is still located for the current position and the element column."""
 
     def __init__(self, card, groups: list, X: np.ndarray, cells: dict[str, np.ndarray]):
         self.name, self.groups = card.name, groups
@@ -44,14 +47,10 @@ class PathTable:
         self.s, self.P = polyline(card.points, card.samples)
         self.where = locate(groups, X, self.P)
         self.stack = None
-        tt = getattr(card, "through_thickness", None)
-        if tt is not None:
-            a = np.asarray(tt.axis, float) / np.linalg.norm(tt.axis)
-            lo, hi = tt.span
-            c = lo + (np.arange(tt.samples) + 0.5) * (hi - lo) / tt.samples  # midpoints of equal sub-intervals
-            pts = self.P[:, None, :] + (c[None, :] - (self.P @ a)[:, None])[..., None] * a
-            self.stack = pts
-            self.stack_where = locate(groups, X, pts.reshape(-1, 3))
+        tt, w = getattr(card, "through_thickness", None), getattr(card, "window", None)
+        if tt is not None or w is not None:
+            self.stack = self.P[:, None, :] + _offsets(self.P, tt, w, card.points)
+            self.stack_where = locate(groups, X, self.stack.reshape(-1, 3))
 
     def _shear(self, where) -> tuple[np.ndarray, np.ndarray]:
         """Shear angle [deg] (NaN where the law has none) and element (1-based, mesh order) at located points."""
@@ -72,7 +71,8 @@ class PathTable:
     def columns(self, x: np.ndarray) -> dict[str, np.ndarray]:
         """Columns at positions x (n_node, 3): arc length [mm], reference point [mm], distance to the element [mm],
         current point [mm], element (1-based, mesh order as in fibres.csv and the frames), shear angle [deg] (NaN where the
-        element's law has none; with ``through_thickness`` the mean over the stack, plus its min and max). Call
+        element's law has none; with ``through_thickness`` or ``window`` the mean over the averaging points, plus
+        their min and max). Call
         after the groups were updated at x (their cell fields are read)."""
         gamma, element = self._shear(self.where)
         cur = self.where.current(self.groups, x)
@@ -85,6 +85,41 @@ class PathTable:
             out["shear_angle"] = g.mean(axis=1)
             out["shear_angle_min"], out["shear_angle_max"] = g.min(axis=1), g.max(axis=1)
         return out
+
+
+WINDOW_POINTS = 8  # per direction of a path's averaging window
+
+
+def _offsets(P: np.ndarray, tt, window: float | None, corners) -> np.ndarray:
+    """(n, k, 3) offsets [mm] from each path sample P (n, 3) to its averaging points: through the thickness
+    (``tt``: axis, span [faces' coordinates along it], samples) and over a square ``window`` aligned with the
+    polyline's local direction in the plane normal to the axis; midpoints of equal sub-intervals, so every point
+    carries the same weight."""
+    axis = np.asarray(tt.axis if tt is not None else (0.0, 0.0, 1.0), float)
+    axis = axis / np.linalg.norm(axis)
+    n = len(P)
+    if tt is not None:
+        lo, hi = tt.span
+        c = lo + (np.arange(tt.samples) + 0.5) * (hi - lo) / tt.samples
+        through = (c[None, :] - (P @ axis)[:, None])[..., None] * axis  # (n, kt, 3): onto each level
+    else:
+        through = np.zeros((n, 1, 3))
+    if window is None:
+        return through
+    # the path's direction at each sample: the segment it lies on (corners are shared; the later segment wins)
+    C = np.asarray(corners, float)
+    seg = np.diff(C, axis=0)
+    cum = np.concatenate([[0.0], np.cumsum(np.linalg.norm(seg, axis=1))])
+    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(P, axis=0), axis=1))])
+    i = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(seg) - 1)
+    t = seg[i] - (seg[i] @ axis)[:, None] * axis
+    norm = np.linalg.norm(t, axis=1, keepdims=True)
+    t = t / norm  # nonzero: the deck refuses a windowed segment along the thickness axis
+    m = np.cross(axis, t)
+    u = (np.arange(WINDOW_POINTS) + 0.5) / WINDOW_POINTS * window - window / 2
+    a, b = np.meshgrid(u, u, indexing="ij")
+    plane = a.reshape(-1)[None, :, None] * t[:, None, :] + b.reshape(-1)[None, :, None] * m[:, None, :]
+    return (through[:, :, None, :] + plane[:, None, :, :]).reshape(n, -1, 3)
 
 
 def fibre_table(cells: dict[str, np.ndarray], x: np.ndarray, fields: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
