@@ -400,6 +400,61 @@ def acoustic_max(F, frame, p, rng, n_dir=200):
     return acoustic_eig(F, frame, p, directions(frame, rng, n_dir)).max()
 
 
+def ddpsi_shear_ref(s):
+    """[P] in-plane shear psi''(s) from the MODELS formulas."""
+    k13 = (KPS1 - KPS0) / (6 * I0PS)
+    p22 = (KPS1 * (2 - 3 * I0PS) - KPS0 * I0PS) / (I0PS * (KPS0 + KPS1))
+    k21 = (KPS0 + KPS1) / (2 * p22) * I0PS * (1 - I0PS) ** (1 + p22)
+    return KPS0 + 6 * k13 * s if s <= I0PS else k21 * p22 * (p22 + 1) * (1 - s) ** (-p22 - 2)
+
+
+def compressed_sheared(lam, gamma):
+    """Warp lam e1 (stretch lam), weft the unit vector at gamma from e2 towards e1: F f1 = lam e1, F f2 = (sin g, cos g)."""
+    return np.array([[lam, math.sin(gamma), 0.0], [0.0, math.cos(gamma), 0.0], [0.0, 0.0, 1.0]])
+
+
+def kink_stiffness_ref(lam, gamma, ratio=0.01):
+    """Closed form of Q_22(N = f1) = d2 psi / dF21^2 (the warp turning in plane) at compressed_sheared(lam, gamma),
+    lam < 1: with e = ln(lam), s0 = sin(gamma), the warp's compressive psi_w'(e) = 2 ratio K_L1 e enters through
+    d2e/dF21^2 = 1/lam^2, the shear through ds/dF21 = cos(gamma)/lam and d2s/dF21^2 = -sin(gamma)/lam^2; compaction
+    and transverse shear do not change (the section area and the thickness line stay)."""
+    e, s0 = math.log(lam), math.sin(gamma)
+    return (2 * ratio * KL[1] * e + ddpsi_shear_ref(s0) * math.cos(gamma) ** 2 - dpsi_shear_ref(s0) * s0) / lam**2
+
+
+@pytest.mark.parametrize("gamma_deg", [0.0, 5.0, 10.0])
+def test_compressed_warp_loses_ellipticity_where_its_stress_reaches_the_shear_tangent(gamma_deg):
+    """Requirement (why compressed 3WEAVE forms element-scale kink bands, README Forming): the in-plane stiffness
+    against the warp turning, Q_22(N = f1) of the acoustic tensor, is the warp's compressive psi_w'(e) plus the
+    shear tangent psi_s'' cos^2 g - psi_s' sin g (closed form above; Rosen's kinking condition for a fibre
+    continuum), so the law loses strong ellipticity at the Hencky strain e* where it vanishes: -0.370 at rest
+    (K_ps0 = 0.371 MPa against 2 x 1 % x K_L1 = 1.003 MPa), only -0.070 at 5 deg of shear, where the shear
+    tangent is lowest (about K_ps1), -0.108 at 10 deg. Checked: (a) the FD Q_22 equals the closed form (1e-5
+    relative, 2e-6 MPa absolute: central differences with h = 1e-7, where the shear law's |s|^3 term adds
+    3 K13 h / lam^3 ~ 3e-7 at s0 = 0); (b) the smallest eigenvalue of the FD acoustic
+    tensor over in-plane directions is positive at 0.97 e* and negative at 1.03 e* (e* from the closed form by
+    bisection; couplings to the other mode and directions move the onset by less than 3 %)."""
+    p = params("3weave")
+    frame = np.eye(3)
+    g = math.radians(gamma_deg)
+    lo, hi = -0.9, -1e-4  # Hencky strain bracket: Q_22 < 0 at lo, > 0 at hi
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if kink_stiffness_ref(math.exp(mid), g) < 0 else (lo, mid)
+    e_star = 0.5 * (lo + hi)
+
+    N = np.array([[math.cos(t), math.sin(t), 0.0] for t in np.linspace(0.0, math.pi, 181)])
+    for scale in (0.5, 0.97, 1.03):
+        lam = math.exp(scale * e_star)
+        F = compressed_sheared(lam, g)
+        A = tangent(F, frame, p)
+        q22 = A[1, 0, 1, 0]  # N = f1 (the gradient along the warp), m = f2 (the warp turning in plane)
+        assert q22 == pytest.approx(kink_stiffness_ref(lam, g), rel=1e-5, abs=2e-6)
+        Q = np.einsum("iJkL,nJ,nL->nik", A, N, N)
+        smallest = np.linalg.eigvalsh(0.5 * (Q + Q.transpose(0, 2, 1))).min()
+        assert (smallest > 0) == (scale < 1.0), (scale, smallest)
+
+
 def modulus_cases():
     rng = np.random.default_rng(7)
     frame = random_frame(rng)
