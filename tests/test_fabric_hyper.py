@@ -424,7 +424,7 @@ def kink_stiffness_ref(lam, gamma, ratio=0.01):
 
 @pytest.mark.parametrize("gamma_deg", [0.0, 5.0, 10.0])
 def test_compressed_warp_loses_ellipticity_where_its_stress_reaches_the_shear_tangent(gamma_deg):
-    """Requirement (why compressed 3WEAVE forms element-scale kink bands, README Forming): the in-plane stiffness
+    """Requirement (a hard case of the law: compressed fibres, where its stability ends): the in-plane stiffness
     against the warp turning, Q_22(N = f1) of the acoustic tensor, is the warp's compressive psi_w'(e) plus the
     shear tangent psi_s'' cos^2 g - psi_s' sin g (closed form above; Rosen's kinking condition for a fibre
     continuum), so the law loses strong ellipticity at the Hencky strain e* where it vanishes: -0.370 at rest
