@@ -4,6 +4,8 @@
     python studies/forming.py force RESULT_DIR... OUT.png [--tool punch]   # punch force against stroke
     python studies/forming.py paths PATH_NAME RESULT_DIR... OUT.png [--labels L...]  # shear along a path, runs compared
     python studies/forming.py retable DECK RESULT_DIR OUT_DIR  # the deck's paths and fibre table from the last frame
+    python studies/forming.py mirror RESULT_DIR       # full model: how far each frame's shear is from mirror symmetry
+    python studies/forming.py ellipticity RESULT_DIR FRAMES [--box B] [--preset 3weave]  # elements past the law's limit
 
 `render` reads the last blank frame of a run's `.pvd` (the blank is part 0; tools are other parts), draws every
 element as the polygon of its nodes projected on the view plane (their 2-D convex hull), farthest first, so the
@@ -16,6 +18,12 @@ and prints, for each run after the first, the largest difference from the first 
 the run in RESULT_DIR, from its last frame's displacements: for a path added or changed after an hours-long run.
 Exact for hyperelastic hexahedral blanks (their fields depend on the positions only); shells with rotational
 degrees of freedom are refused (the frame does not hold their directors).
+`mirror` reads a full (not halved) model's hexahedral frames and prints, per frame, the largest and 95th-percentile
+|gamma(x, y) + gamma(x, -y)| over element pairs mirrored about y = 0 (the shear angle is odd under that mirror when
+the warp lies along x): zero for a mirror-symmetric answer. `ellipticity` evaluates the fabric law at each
+element's centre deformation gradient (from the frame's displacements; elements whose reference centroid has
+|x|, y < B) and counts those whose acoustic tensor has lost strong ellipticity (smallest eigenvalue over 48 unit
+directions, 36 in the fibre plane, below zero; tangent by central differences of the point kernel).
 """
 
 from __future__ import annotations
@@ -178,6 +186,78 @@ def retable(deck_path, result_dir, out_dir) -> list[str]:
     return write_end_tables(problem, paths, Path(out_dir), x)
 
 
+def _reference_frames(result_dir):
+    """(reference points, hex connectivity, list of frame VTU paths) of a run's blank (part 0)."""
+    import meshio
+
+    pvd = next(Path(result_dir).glob("*.pvd"))
+    files = [pvd.parent / d.get("file") for d in ET.parse(pvd).getroot().iter("DataSet") if d.get("part", "0") == "0"]
+    m0 = meshio.read(files[0])
+    return m0.points - m0.point_data["displacement"], m0.cells_dict["hexahedron"], files
+
+
+def mirror(result_dir) -> list[tuple[float, float]]:
+    """Per frame (largest, 95th percentile) of |gamma(x, y) + gamma(x, -y)| [deg] over mirrored element pairs."""
+    import meshio
+
+    X, conn, files = _reference_frames(result_dir)
+    c = np.round(X[conn].mean(axis=1), 6)
+    index = {tuple(p): i for i, p in enumerate(c)}
+    pair = np.array([index.get((p[0], -p[1] if p[1] else 0.0, p[2]), -1) for p in c])
+    if (pair < 0).any():
+        raise SystemExit(f"mirror: {int((pair < 0).sum())} elements have no mirror image about y = 0")
+    out = []
+    for f in files:
+        g = meshio.read(f).cell_data_dict["shear_angle"]["hexahedron"]
+        a = np.abs(g + g[pair])
+        out.append((float(a.max()), float(np.percentile(a, 95))))
+    return out
+
+
+def ellipticity(result_dir, frames, box=None, preset="3weave", h=1e-6) -> list[tuple[int, int]]:
+    """Per frame index (elements whose law lost strong ellipticity at their centre F, elements examined)."""
+    import math
+
+    import meshio
+
+    import fdeck.cards.fabric_hyper as fc
+    import fdeck.physics.materials.fabric_hyper as fh
+    from fdeck.physics.elements.hex8 import shape_gradients_local
+
+    X, conn, files = _reference_frames(result_dir)
+    c = X[conn].mean(axis=1)
+    sel = np.arange(len(conn)) if box is None else np.nonzero((np.abs(c[:, 0]) < box) & (c[:, 1] < box))[0]
+    dxi = shape_gradients_local(np.zeros((1, 3)))[0]
+    J = np.einsum("eai,aj->eij", X[conn], dxi)
+    dNdX = np.einsum("aj,eji->eai", dxi, np.linalg.inv(J))
+    p = fh.pack(fc.FabricHyper(type="fabric_hyper", preset=preset))
+    frame, state, P = np.eye(3), np.zeros(0), np.zeros((3, 3))
+    th = np.linspace(0.0, math.pi, 36, endpoint=False)
+    N = np.array([[math.cos(t), math.sin(t), 0.0] for t in th]
+                 + [[math.cos(t) / math.sqrt(2), math.sin(t) / math.sqrt(2), 1 / math.sqrt(2)] for t in th[::3]])
+
+    def stress(F):
+        fh.point(np.ascontiguousarray(F), frame, p, state, P)
+        return P.copy()
+
+    out = []
+    for k in frames:
+        x = X + meshio.read(files[k]).point_data["displacement"]
+        F = np.einsum("eai,eaj->eij", x[conn], dNdX)
+        lost = 0
+        for e in sel:
+            A = np.zeros((3, 3, 3, 3))
+            for i in range(3):
+                for j in range(3):
+                    E = np.zeros((3, 3))
+                    E[i, j] = h
+                    A[:, :, i, j] = (stress(F[e] + E) - stress(F[e] - E)) / (2 * h)
+            Q = np.einsum("iJkL,nJ,nL->nik", A, N, N)
+            lost += int(np.linalg.eigvalsh(0.5 * (Q + Q.transpose(0, 2, 1))).min() < 0.0)
+        out.append((lost, len(sel)))
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = ap.add_subparsers(dest="cmd", required=True)
@@ -198,9 +278,23 @@ def main() -> None:
     t.add_argument("deck")
     t.add_argument("result_dir")
     t.add_argument("out_dir")
+    mi = sub.add_parser("mirror")
+    mi.add_argument("result_dir")
+    el = sub.add_parser("ellipticity")
+    el.add_argument("result_dir")
+    el.add_argument("frames", help="frame indices, comma-separated (0 = the initial frame)")
+    el.add_argument("--box", type=float, help="only elements with reference |x|, y below this [mm]")
+    el.add_argument("--preset", default="3weave")
     a = ap.parse_args()
     if a.cmd == "render":
         print(render(a.result_dir, a.png, a.field, a.view, a.title))
+    elif a.cmd == "mirror":
+        for k, (big, p95) in enumerate(mirror(a.result_dir)):
+            print(f"frame {k}: |gamma(x, y) + gamma(x, -y)| largest {big:.1f} deg, 95th percentile {p95:.1f} deg")
+    elif a.cmd == "ellipticity":
+        ks = [int(v) for v in a.frames.split(",")]
+        for k, (lost, n) in zip(ks, ellipticity(a.result_dir, ks, a.box, a.preset)):
+            print(f"frame {k}: {lost} of {n} elements past strong ellipticity at their centre")
     elif a.cmd == "retable":
         print(" ".join(retable(a.deck, a.result_dir, a.out_dir)))
     elif a.cmd == "force":

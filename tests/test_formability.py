@@ -200,8 +200,6 @@ def test_retable_from_the_last_frame_gives_the_tables_the_run_wrote(tmp_path):
     with `fdeck run`'s engine: retable with the same deck gives the run's own path and fibre tables. Tolerance
     1e-9 (deg, mm): the frame stores the displacements in float64 (base64 binary VTU), so the only difference is
     the round-off of X + (x - X)."""
-    import importlib.util
-
     from fdeck.deck.read import read_deck
     from fdeck.run import execute
 
@@ -225,10 +223,7 @@ output:
     deck, _, _ = read_deck(deck_path)
     code, _ = execute(deck, tmp_path, tmp_path / "run", "strip", str(deck_path), echo=lambda *a: None)
     assert code == 0
-    spec = importlib.util.spec_from_file_location("forming", Path(__file__).parents[1] / "studies" / "forming.py")
-    forming = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(forming)
-    names = forming.retable(deck_path, tmp_path / "run", tmp_path / "again")
+    names = _forming_script().retable(deck_path, tmp_path / "run", tmp_path / "again")
     assert {"path_mid.csv", "fibres.csv"} <= set(names)
     for table in ("path_mid.csv", "fibres.csv"):
         ran, again = read_table(tmp_path / "run" / table), read_table(tmp_path / "again" / table)
@@ -428,3 +423,39 @@ def test_tool_surfaces_are_written_beside_the_blank_every_frame(tmp_path):
         np.testing.assert_array_equal(vtk_to_numpy(blocks["punch"].GetPoints().GetData()),
                                       MovingTriangle.P0 - [0.0, 0.0, t])
         np.testing.assert_array_equal(vtk_to_numpy(blocks["b"].GetPoints().GetData()), X)
+
+
+def _forming_script():
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("forming", Path(__file__).parents[1] / "studies" / "forming.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_mirror_and_ellipticity_diagnostics_of_written_frames(tmp_path):
+    """Requirement: ``studies/forming.py mirror`` measures how far a full model's shear field is from mirror symmetry
+    about y = 0, and ``ellipticity`` counts the elements whose law has lost strong ellipticity at their centre.
+    Frames written by fdeck's own series writer over a 3WEAVE block 20 x 20 x 2 mm (y from -10 to 10): an odd
+    shear field gamma = 10 sign(y) (x + 1) deg is mirror-symmetric (0 to round-off), an even one of the same size
+    differs by 2 |gamma| = 20 (x + 1) deg at most (closed forms). Displacements of a uniform warp compression: the
+    law's stiffness against the warp turning vanishes at Hencky strain -K_ps0 / (2 ratio K_L1) = -0.370 at rest
+    (test_fabric_hyper), so stretch 0.65 (e = -0.431) loses it in every element and 0.75 (e = -0.288) in none."""
+    p = _compile(_block((20.0, 20.0, 2.0), (4, 4, 1), {}))
+    X = p.X - np.array([0.0, 10.0, 0.0])
+    conn = p.cells["hexahedron"]
+    c = X[conn].mean(axis=1)
+    odd = 10.0 * np.sign(c[:, 1]) * (c[:, 0] + 1.0)
+    even = 10.0 * (c[:, 0] + 1.0)
+    series = open_series(["vtu"], tmp_path, "b", X, {"hexahedron": conn})
+    zero = np.zeros_like(X)
+    for t, (u, g) in enumerate([(zero, odd), (zero, even), (X * [-0.35, 0, 0], odd), (X * [-0.25, 0, 0], odd)]):
+        for s in series:
+            s.write(float(t), {"displacement": u}, {"shear_angle": g})
+    for s in series:
+        s.close()
+    forming = _forming_script()
+    sym = forming.mirror(tmp_path)
+    assert sym[0][0] < 1e-9 and sym[1][0] == pytest.approx(2 * np.abs(even).max(), rel=1e-9)
+    assert forming.ellipticity(tmp_path, [0, 2, 3]) == [(0, 16), (16, 16), (0, 16)]
