@@ -3,7 +3,7 @@
     python studies/forming.py render RESULT_DIR OUT.png [--field shear_angle] [--view top|side] [--title T]
     python studies/forming.py force RESULT_DIR... OUT.png [--tool punch]   # punch force against stroke
     python studies/forming.py paths PATH_NAME RESULT_DIR... OUT.png [--labels L...]  # shear along a path, runs compared
-    python studies/forming.py retable DECK RESULT_DIR OUT_DIR  # the deck's paths and fibre table from the last frame
+    python studies/forming.py retable DECK RESULT_DIR OUT_DIR [--set PATH=VALUE...]  # end tables from the last frame
     python studies/forming.py mirror RESULT_DIR       # full model: how far each frame's shear is from mirror symmetry
     python studies/forming.py ellipticity RESULT_DIR FRAMES [--box B] [--preset 3weave]  # elements past the law's limit
 
@@ -15,7 +15,9 @@ angle in degrees by default). `force` plots the history's `tool_<tool>_force_z` 
 and prints, for each run after the first, the largest difference from the first at the first run's sample points
 (linear interpolation in arc length; each run's angle is its elements' own, constant per element).
 `retable` writes the end-of-run tables (``output.paths``, ``fibres.csv``) of DECK as they would be at the end of
-the run in RESULT_DIR, from its last frame's displacements: for a path added or changed after an hours-long run.
+the run in RESULT_DIR, from its last frame's displacements: for a path added or changed after an hours-long run;
+``--set`` changes the deck first (deck paths as in a study, values in YAML: ``--set mesh.block.divisions=[60,25,2]``
+for a study variant's mesh, ``--set output.paths.2.window=10`` for another window).
 Exact for hyperelastic hexahedral blanks (their fields depend on the positions only); shells with rotational
 degrees of freedom are refused (the frame does not hold their directors).
 `mirror` reads a full (not halved) model's hexahedral frames and prints, per frame, the largest and 95th-percentile
@@ -162,17 +164,23 @@ def paths(name: str, result_dirs, png, labels=None) -> list[float]:
     return out
 
 
-def retable(deck_path, result_dir, out_dir) -> list[str]:
-    """Write DECK's end-of-run tables at the last frame of ``result_dir`` into ``out_dir``; returns their names."""
+def retable(deck_path, result_dir, out_dir, sets: dict | None = None) -> list[str]:
+    """Write DECK's end-of-run tables at the last frame of ``result_dir`` into ``out_dir``, after setting the deck
+    paths ``sets`` ({path: value}); returns the file names."""
     import meshio
 
     from fdeck.compile.problem import compile_deck
-    from fdeck.deck.read import read_deck
+    from fdeck.deck.loader import load_file
+    from fdeck.deck.model import Deck
     from fdeck.physics.measures.tables import PathTable
     from fdeck.run import write_end_tables
+    from fdeck.study.deck_paths import set_value
 
     deck_path = Path(deck_path)
-    problem = compile_deck(read_deck(deck_path)[0], deck_path.parent)
+    data, _ = load_file(deck_path)
+    for key, value in (sets or {}).items():
+        set_value(data, key, value)
+    problem = compile_deck(Deck.model_validate(data), deck_path.parent)
     if problem.rotations is not None:
         raise SystemExit("retable: shells with rotations need their directors, which the frames do not hold")
     u = meshio.read(last_blank_frame(Path(result_dir))).point_data["displacement"]
@@ -278,6 +286,7 @@ def main() -> None:
     t.add_argument("deck")
     t.add_argument("result_dir")
     t.add_argument("out_dir")
+    t.add_argument("--set", nargs="+", default=[], metavar="PATH=VALUE", help="deck path = YAML value")
     mi = sub.add_parser("mirror")
     mi.add_argument("result_dir")
     el = sub.add_parser("ellipticity")
@@ -296,7 +305,10 @@ def main() -> None:
         for k, (lost, n) in zip(ks, ellipticity(a.result_dir, ks, a.box, a.preset)):
             print(f"frame {k}: {lost} of {n} elements past strong ellipticity at their centre")
     elif a.cmd == "retable":
-        print(" ".join(retable(a.deck, a.result_dir, a.out_dir)))
+        import yaml
+
+        sets = dict((k, yaml.safe_load(v)) for k, v in (item.split("=", 1) for item in a.set))
+        print(" ".join(retable(a.deck, a.result_dir, a.out_dir, sets)))
     elif a.cmd == "force":
         force(a.paths[:-1], a.paths[-1], a.tool)
     else:
