@@ -20,15 +20,17 @@ import numpy as np
 from fdeck.physics.measures.locate import locate
 
 
-def polyline(points, samples: int) -> tuple[np.ndarray, np.ndarray]:
-    """Corners (k, 3) [mm] -> arc lengths s (samples,) [mm] from the first corner and the points (samples, 3)."""
+def polyline(points, samples: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Corners (k, 3) [mm] -> arc lengths s (samples,) [mm] from the first corner, the points (samples, 3) and the
+    unit direction (samples, 3) of the segment each point lies on (at a corner, the later segment's)."""
     P = np.asarray(points, dtype=float)
-    seg = np.linalg.norm(np.diff(P, axis=0), axis=1)
+    d = np.diff(P, axis=0)
+    seg = np.linalg.norm(d, axis=1)
     cum = np.concatenate([[0.0], np.cumsum(seg)])
     s = np.linspace(0.0, cum[-1], samples)
     i = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(seg) - 1)
     t = (s - cum[i]) / seg[i]
-    return s, P[i] + t[:, None] * (P[i + 1] - P[i])
+    return s, P[i] + t[:, None] * d[i], d[i] / seg[i, None]
 
 
 class PathTable:
@@ -44,12 +46,12 @@ class PathTable:
         self.name, self.groups = card.name, groups
         starts = np.cumsum([0] + [len(c) for c in cells.values()])
         self.offset = dict(zip(cells, starts.tolist()))  # first mesh-order index of each cell type
-        self.s, self.P = polyline(card.points, card.samples)
+        self.s, self.P, direction = polyline(card.points, card.samples)
         self.where = locate(groups, X, self.P)
         self.stack = None
-        tt, w = getattr(card, "through_thickness", None), getattr(card, "window", None)
+        tt, w = card.through_thickness, card.window
         if tt is not None or w is not None:
-            self.stack = self.P[:, None, :] + _offsets(self.P, tt, w, card.points)
+            self.stack = self.P[:, None, :] + _offsets(self.P, direction, tt, w)
             self.stack_where = locate(groups, X, self.stack.reshape(-1, 3))
 
     def _shear(self, where) -> tuple[np.ndarray, np.ndarray]:
@@ -72,8 +74,7 @@ class PathTable:
         """Columns at positions x (n_node, 3): arc length [mm], reference point [mm], distance to the element [mm],
         current point [mm], element (1-based, mesh order as in fibres.csv and the frames), shear angle [deg] (NaN where the
         element's law has none; with ``through_thickness`` or ``window`` the mean over the averaging points, plus
-        their min and max). Call
-        after the groups were updated at x (their cell fields are read)."""
+        their min and max). Call after the groups were updated at x (their cell fields are read)."""
         gamma, element = self._shear(self.where)
         cur = self.where.current(self.groups, x)
         out = {"arc_length": self.s, "X": self.P[:, 0], "Y": self.P[:, 1], "Z": self.P[:, 2],
@@ -90,10 +91,10 @@ class PathTable:
 WINDOW_POINTS = 8  # per direction of a path's averaging window
 
 
-def _offsets(P: np.ndarray, tt, window: float | None, corners) -> np.ndarray:
+def _offsets(P: np.ndarray, direction: np.ndarray, tt, window: float | None) -> np.ndarray:
     """(n, k, 3) offsets [mm] from each path sample P (n, 3) to its averaging points: through the thickness
-    (``tt``: axis, span [faces' coordinates along it], samples) and over a square ``window`` aligned with the
-    polyline's local direction in the plane normal to the axis; midpoints of equal sub-intervals, so every point
+    (``tt``: axis, span [faces' coordinates along it], samples) and over a square ``window`` aligned with the path's
+    ``direction`` (n, 3) projected on the plane normal to the axis; midpoints of equal sub-intervals, so every point
     carries the same weight."""
     axis = np.asarray(tt.axis if tt is not None else (0.0, 0.0, 1.0), float)
     axis = axis / np.linalg.norm(axis)
@@ -106,19 +107,12 @@ def _offsets(P: np.ndarray, tt, window: float | None, corners) -> np.ndarray:
         through = np.zeros((n, 1, 3))
     if window is None:
         return through
-    # the path's direction at each sample: the segment it lies on (corners are shared; the later segment wins)
-    C = np.asarray(corners, float)
-    seg = np.diff(C, axis=0)
-    cum = np.concatenate([[0.0], np.cumsum(np.linalg.norm(seg, axis=1))])
-    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(P, axis=0), axis=1))])
-    i = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(seg) - 1)
-    t = seg[i] - (seg[i] @ axis)[:, None] * axis
-    norm = np.linalg.norm(t, axis=1, keepdims=True)
-    t = t / norm  # nonzero: the deck refuses a windowed segment along the thickness axis
+    t = direction - (direction @ axis)[:, None] * axis
+    t /= np.linalg.norm(t, axis=1, keepdims=True)  # nonzero: the deck refuses a windowed segment along the axis
     m = np.cross(axis, t)
     u = (np.arange(WINDOW_POINTS) + 0.5) / WINDOW_POINTS * window - window / 2
-    a, b = np.meshgrid(u, u, indexing="ij")
-    plane = a.reshape(-1)[None, :, None] * t[:, None, :] + b.reshape(-1)[None, :, None] * m[:, None, :]
+    a, b = (v.reshape(-1) for v in np.meshgrid(u, u, indexing="ij"))
+    plane = a[None, :, None] * t[:, None, :] + b[None, :, None] * m[:, None, :]
     return (through[:, :, None, :] + plane[:, None, :, :]).reshape(n, -1, 3)
 
 
