@@ -11,6 +11,9 @@ Writes benchmarks/results.json.
     python benchmarks/bench.py --quick    # 10 k elements only
     python benchmarks/bench.py --report   # markdown table of benchmarks/results.json (what the README shows)
     python benchmarks/bench.py --peers    # CalculiX explicit beside fdeck on the same block (benchmarks/peers.py)
+    python benchmarks/bench.py --only ans_tbar:fabric_hyper_3weave fbar:fabric_hyper_3weave \
+        --results benchmarks/results_ans_tbar.json     # these cases only, side by side (both sizes, 1 and 2 threads)
+    python benchmarks/bench.py --report --results benchmarks/results_ans_tbar.json
 """
 
 from __future__ import annotations
@@ -37,7 +40,8 @@ MATERIALS = {
 }
 CASES = [("reduced", "linear_elastic"), ("full", "linear_elastic"), ("fbar", "linear_elastic"),
          ("fbar", "neo_hookean"), ("fbar", "fabric_hyper_3weave"), ("reduced", "fabric_hyper_3weave"),
-         ("sm", "fabric_membrane_t300"), ("ts", "fabric_membrane_t300_ts")]
+         ("sm", "fabric_membrane_t300"), ("ts", "fabric_membrane_t300_ts"),
+         ("ans_tbar", "linear_elastic"), ("ans_tbar", "fabric_hyper_3weave")]
 SHELLS = ("sm", "ts", "membrane")
 
 
@@ -151,6 +155,9 @@ def main():
     ap.add_argument("--report", action="store_true", help="print the markdown table of results.json and exit")
     ap.add_argument("--peers", action="store_true", help="CalculiX beside fdeck where ccx is on PATH (peers.py); "
                     "with --report, print its table")
+    ap.add_argument("--only", nargs="+", metavar="FORM:MATERIAL",
+                    help="measure only these cases (both sizes, 1 and 2 threads), written to --results alone")
+    ap.add_argument("--results", default=str(HERE / "results.json"), help="results file (default results.json)")
     ap.add_argument("--one", nargs=5, help=argparse.SUPPRESS)  # form mat nx,ny,nz cycles threads (subprocess)
     args = ap.parse_args()
     if args.peers:
@@ -159,16 +166,17 @@ def main():
 
         sys.exit(peers.main(["--report"] if args.report else (["--quick"] if args.quick else [])))
     if args.report:
-        print(report(json.loads((HERE / "results.json").read_text())))
+        print(report(json.loads(Path(args.results).read_text())))
         return
     if args.one:
         form, mat, div, cycles, threads = args.one
         print(json.dumps(measure(form, mat, tuple(map(int, div.split(","))), int(cycles), int(threads))))
         return
     sizes = [((50, 50, 4), 200)] + ([] if args.quick else [((160, 160, 4), 40)])  # 10 000 and 102 400 elements
+    cases = [tuple(c.split(":")) for c in args.only] if args.only else CASES
     rows = []
     for div, cycles in sizes:
-        for form, mat in CASES:
+        for form, mat in cases:
             for threads in (1, 2):
                 # a fresh process per measurement: no cross-talk of caches or thread pools
                 r = subprocess.run([sys.executable, __file__, "--one", form, mat, ",".join(map(str, div)),
@@ -181,6 +189,11 @@ def main():
                 print(f"{form:8s} {mat:22s} {row['elements']:7d} el  {threads} thr  "
                       f"{row['us_per_element_cycle']:.3f} us/el-cycle  ({row['us_per_element_cycle_elements_only']:.3f}"
                       f" in elements)  {row['bytes_per_element']:.0f} B/el", flush=True)
+    machine = {"cpu_count": os.cpu_count(), "platform": platform.platform(), "python": platform.python_version()}
+    if args.only:  # a side-by-side comparison of a few cases, measured in the same minutes
+        Path(args.results).write_text(json.dumps({"machine": machine, "runs": rows, "scaling": [], "startup": {}},
+                                                 indent=1) + "\n")
+        return
     scaling = []
     if not args.quick:  # is the cost per cycle linear in the element count (constant per element-cycle)?
         for div, cycles in (((25, 25, 4), 200), ((50, 50, 4), 200), ((100, 100, 4), 60), ((320, 320, 4), 20)):
@@ -188,11 +201,9 @@ def main():
                                 ",".join(map(str, div)), str(cycles), "1"], capture_output=True, text=True, cwd=ROOT)
             if r.returncode == 0:
                 scaling.append(json.loads(r.stdout.strip().splitlines()[-1]))
-    result = {"machine": {"cpu_count": os.cpu_count(), "platform": platform.platform(),
-                          "python": platform.python_version()},
-              "runs": rows, "scaling": scaling, "startup": compile_times()}
+    result = {"machine": machine, "runs": rows, "scaling": scaling, "startup": compile_times()}
     print(json.dumps(result["startup"]))
-    (HERE / "results.json").write_text(json.dumps(result, indent=1) + "\n")
+    Path(args.results).write_text(json.dumps(result, indent=1) + "\n")
 
 
 if __name__ == "__main__":
