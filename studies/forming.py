@@ -39,11 +39,15 @@ import numpy as np
 VIEWS = {"top": (0, 1, 2), "side": (0, 2, 1)}  # (horizontal, vertical, depth) axes of the picture
 
 
+def blank_frames(result_dir) -> list[Path]:
+    """Paths of the blank's (part 0) VTU frames listed in the run's .pvd, in order."""
+    pvd = next(Path(result_dir).glob("*.pvd"))
+    return [pvd.parent / d.get("file") for d in ET.parse(pvd).getroot().iter("DataSet") if d.get("part", "0") == "0"]
+
+
 def last_blank_frame(result_dir: Path) -> Path:
     """Path of the blank's (part 0) last VTU frame listed in the run's .pvd."""
-    pvd = next(Path(result_dir).glob("*.pvd"))
-    frames = [d for d in ET.parse(pvd).getroot().iter("DataSet") if d.get("part", "0") == "0"]
-    return pvd.parent / frames[-1].get("file")
+    return blank_frames(result_dir)[-1]
 
 
 def hull(points: np.ndarray) -> np.ndarray:
@@ -198,8 +202,7 @@ def _reference_frames(result_dir):
     """(reference points, hex connectivity, list of frame VTU paths) of a run's blank (part 0)."""
     import meshio
 
-    pvd = next(Path(result_dir).glob("*.pvd"))
-    files = [pvd.parent / d.get("file") for d in ET.parse(pvd).getroot().iter("DataSet") if d.get("part", "0") == "0"]
+    files = blank_frames(result_dir)
     m0 = meshio.read(files[0])
     return m0.points - m0.point_data["displacement"], m0.cells_dict["hexahedron"], files
 

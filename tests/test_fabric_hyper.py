@@ -126,13 +126,18 @@ def dpoly(a, x):
     return sum(k * a[k - 1] * x ** (k - 1) for k in range(1, 6))
 
 
-def dpsi_shear_ref(s):
-    """[P] in-plane shear psi'(s) from the MODELS formulas."""
-    k12 = KPS0 / 2
+def _shear_constants():
+    """(K13, p22, K21) of [P]'s in-plane shear law from the MODELS formulas."""
     k13 = (KPS1 - KPS0) / (6 * I0PS)
     p22 = (KPS1 * (2 - 3 * I0PS) - KPS0 * I0PS) / (I0PS * (KPS0 + KPS1))
     k21 = (KPS0 + KPS1) / (2 * p22) * I0PS * (1 - I0PS) ** (1 + p22)
-    return 2 * k12 * s + 3 * k13 * s * s if s <= I0PS else k21 * p22 * (1 - s) ** (-p22 - 1)
+    return k13, p22, k21
+
+
+def dpsi_shear_ref(s):
+    """[P] in-plane shear psi'(s) from the MODELS formulas."""
+    k13, p22, k21 = _shear_constants()
+    return KPS0 * s + 3 * k13 * s * s if s <= I0PS else k21 * p22 * (1 - s) ** (-p22 - 1)
 
 
 def dpsi_comp_ref(c):
@@ -402,9 +407,7 @@ def acoustic_max(F, frame, p, rng, n_dir=200):
 
 def ddpsi_shear_ref(s):
     """[P] in-plane shear psi''(s) from the MODELS formulas."""
-    k13 = (KPS1 - KPS0) / (6 * I0PS)
-    p22 = (KPS1 * (2 - 3 * I0PS) - KPS0 * I0PS) / (I0PS * (KPS0 + KPS1))
-    k21 = (KPS0 + KPS1) / (2 * p22) * I0PS * (1 - I0PS) ** (1 + p22)
+    k13, p22, k21 = _shear_constants()
     return KPS0 + 6 * k13 * s if s <= I0PS else k21 * p22 * (p22 + 1) * (1 - s) ** (-p22 - 2)
 
 
