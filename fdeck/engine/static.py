@@ -3,8 +3,9 @@
 What it solves: find x (n_node, 3) [mm] with f_int(x) = lambda f_ext on the free dofs, lambda from 0 to 1, where
 f_int [N] sums the element groups' forces and the effects whose forces have the resisting sign (``forces =
 "internal"``: section add-ons such as ``fibre_bending``, springs), f_ext [N] the external loads (gravity, nodal
-forces) at the end of the deck's last step, and the dofs that the deck's boundary cards prescribe are held at the
-position they prescribe at that time. Damping forces vanish at rest and are left out. Not supported (ValueError):
+forces) at the end of the deck's last step, and the dofs that the deck's boundary cards prescribe are held at
+lambda times the displacement they prescribe at that time (a punch pushed by a prescribed displacement is solved
+by displacement increments). Damping forces vanish at rest and are left out. Not supported (ValueError):
 rotational dofs (shells), effects with bodies of their own (tools), loads that depend on x.
 
 Tangent: K = d f_int / dx by central differences of f_int, compressed by colouring (A.R. Curtis, M.J.D. Powell,
@@ -17,7 +18,10 @@ every pair of elements that share a node; other internal effects are taken as no
 pattern of a small problem column by column, to check the connectivity pattern against (tests).
 
 Load stepping: increments of lambda grow after an increment converging in few iterations and are halved after one
-that fails (no convergence, a non-finite force, an inverted element).
+that fails (no convergence, a non-finite force, an inverted element). Under prescribed displacements each increment
+starts from the secant extrapolation of the last two equilibria, and the first moves the held nodes by at most a
+quarter of the smallest element edge (see ``solve``). Stability of an answer: ``negative_eigenvalues`` (Sylvester's
+inertia of the tangent); an equilibrium reached by continuation is not necessarily the only one.
 
 Shapes: dofs numbered 3 node + component; x, X (n_node, 3) [mm]; forces (n_node, 3) [N]; K (n_free, n_free) [N/mm].
 """
@@ -110,6 +114,17 @@ class StaticProblem:
             stored += sum(v for t, v in zip(src.terms, src.term_values()) if t.kind == STORED)
         return stored - lam * float(np.sum(self.f_ext * (x - self.X)))
 
+    def smallest_edge(self) -> float:
+        """Smallest distance [mm] between two nodes of one element in the reference configuration."""
+        out = np.inf
+        for g in self.problem.groups:
+            xe = self.X[np.asarray(g.conn)]  # (n_el, k, 3)
+            k = xe.shape[1]
+            for a in range(k):
+                for b in range(a + 1, k):
+                    out = min(out, float(np.linalg.norm(xe[:, a] - xe[:, b], axis=1).min()))
+        return out
+
     def inverted(self) -> bool:
         """True when an element of the last evaluated state has det F <= 0 (or NaN)."""
         return any(not g.worst_jacobian()[0] > 0.0 for g in self.problem.groups)
@@ -178,7 +193,10 @@ class StaticProblem:
 
     def tangent(self, x: np.ndarray, S: sp.csr_matrix, colours: np.ndarray, h: float) -> sp.csc_matrix:
         """(n_free, n_free) d f_int / dx on the free dofs at x by central differences, one pair of force calls per
-        colour; column j takes the rows of its pattern column from its colour's difference."""
+        colour; column j takes the rows of its pattern column from its colour's difference. Not forward
+        differences, which would cost half: at a kink (bimodular fibres at zero strain, everywhere on the flat
+        blank) they take the tension branch's stiffness for every point, and Newton cycles (the 1 mm three-point
+        bending's first increment: 30 iterations without converging, against 12 with central differences)."""
         Sc = S.tocsc()
         data = np.empty(Sc.nnz)
         xr = x.ravel()
@@ -237,14 +255,31 @@ def solve(problem, first: float = 0.1, min_increment: float = 1e-4, max_iteratio
     colours = StaticProblem.colour(S)
     fe = sp_.f_ext.ravel()[sp_.free]
     load_norm = max(np.linalg.norm(fe), 1e-300)
+    X_held = X.ravel()[sp_.held]
+    u_held = sp_.x_held - X_held  # prescribed displacements at full load, applied in proportion to lambda
+    moving = bool(np.any(u_held != 0.0))
     x = X.copy() if x0 is None else x0.copy()
-    x.ravel()[sp_.held] = sp_.x_held
+    x.ravel()[sp_.held] = X_held if x0 is None else sp_.x_held
+    if moving and x0 is None:
+        # the first increment moves the held nodes by at most a quarter of the smallest element edge: a larger first
+        # push crushes the elements next to them before anything else can move, and Newton may settle on that
+        # crushed equilibrium (three-point bending on 3 mm elements pushed 4 mm at once: stored energy 1.8x the
+        # equilibrium reached from smaller increments, which a slow dynamic run reaches too)
+        first = min(first, 0.25 * sp_.smallest_edge() / float(np.abs(u_held).max()))
     lam, dlam = 0.0, first
     increments = iterations = 0
     history, rel = [], float("nan")
+    x_prev, lam_prev = None, 0.0
     while lam < 1.0 and dlam >= min_increment:
         target = min(1.0, lam + dlam)
         xt, ok, its, mu = x.copy(), False, 0, 0.0
+        if moving:
+            # secant predictor: the free dofs continue the last converged increment's motion, the held dofs go to
+            # their share of the prescribed displacement (without it the first iterate crushes the elements next
+            # to the moved nodes)
+            if x_prev is not None:
+                xt += (target - lam) / (lam - lam_prev) * (x - x_prev)
+            xt.ravel()[sp_.held] = X_held + target * u_held
         for its in range(1, max_iterations + 1):
             f = sp_.f_int(xt)
             r = f.ravel()[sp_.free] - target * fe
@@ -290,12 +325,16 @@ def solve(problem, first: float = 0.1, min_increment: float = 1e-4, max_iteratio
                       f"|du| {np.abs(du).max():.3e}")
             scale = max(np.abs(xt - X).max(), size * 1e-6)
             if np.abs(du).max() < rtol * scale:
-                rn = sp_.f_int(xt).ravel()[sp_.free] - target * fe
-                rel = float(np.linalg.norm(rn) / (target * load_norm))
+                fi = sp_.f_int(xt).ravel()
+                rn = fi[sp_.free] - target * fe
+                # the load's scale: the applied loads, or under prescribed displacements the reactions they need
+                ref = max(target * load_norm, float(np.linalg.norm(fi[sp_.held])) if moving else 0.0)
+                rel = float(np.linalg.norm(rn) / ref)
                 ok = rel < ftol and not sp_.inverted()
                 break
         iterations += its
         if ok:
+            x_prev, lam_prev = x, lam
             x, lam = xt, target
             increments += 1
             history.append((lam, its))
@@ -332,3 +371,22 @@ def continuation(make, params, x0: np.ndarray | None = None, max_inserts: int = 
         else:
             break
     return out
+
+
+def negative_eigenvalues(problem, x: np.ndarray, h: float | None = None) -> int:
+    """Number of negative eigenvalues of the tangent stiffness d f_int / dx on the free dofs at x (n_node, 3) [mm]:
+    0 at a stable equilibrium of a displacement-driven or dead-loaded problem.
+
+    Sylvester's law of inertia: a symmetric K = P^T L D L^T P has as many negative eigenvalues as D has negative
+    entries. The LDL^T comes from SuperLU with pivots kept on the diagonal in a symmetric ordering (``SymmetricMode``,
+    no threshold pivoting), so U's diagonal is D; the count is refused (ValueError) if SuperLU permuted rows and
+    columns differently anyway. K is the finite-difference tangent, symmetrised."""
+    sp_ = StaticProblem(problem)
+    size = float(np.ptp(sp_.X, axis=0).max())
+    S = sp_.dof_pattern(sp_.pattern())
+    K = sp_.tangent(x, S, StaticProblem.colour(S), 1e-11 * size if h is None else h)
+    K = (0.5 * (K + K.T)).tocsc()
+    lu = spl.splu(K, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+    if not np.array_equal(lu.perm_r, lu.perm_c):
+        raise ValueError("negative_eigenvalues: the factorisation pivoted off the diagonal; inertia not available")
+    return int(np.sum(lu.U.diagonal() < 0.0))

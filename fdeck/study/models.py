@@ -72,6 +72,9 @@ class StaticSolve(Card):
 
     continuation: Continuation | None = None
     max_iterations: int = Field(20, ge=1, description="Newton iterations per load increment before it is halved.")
+    stability: bool = Field(False, description="Also count the negative eigenvalues of the tangent stiffness at "
+                            "the answer (summary `negative_eigenvalues`: 0 at a stable equilibrium; one sparse "
+                            "factorisation more).")
 
 
 class Solver(Card):

@@ -82,6 +82,9 @@ def _run_static(deck_data: dict, base_dir: Path, out_dir: Path, options: dict, s
         zero = np.zeros_like(res.x)
         summary["measures"] = {c: float(v) for m in problem.measures
                                for c, v in zip(m.columns, m.evaluate(res.x, zero))}
+        summary["final"] = final_values(problem, res.x)
+        if options.get("stability", False):
+            summary["negative_eigenvalues"] = static.negative_eigenvalues(problem, res.x)
         np.save(out_dir / POSITIONS, res.x)
     else:
         summary["message"] = (f"static solve stopped at load factor {res.load_factor:.3g}" if reached is None else
@@ -93,6 +96,28 @@ def _run_static(deck_data: dict, base_dir: Path, out_dir: Path, options: dict, s
 
 
 POSITIONS = "final_positions.npy"
+
+
+def final_values(problem, x: np.ndarray) -> dict:
+    """The columns a dynamic run's summary keeps in ``final`` that an equilibrium x (n_node, 3) [mm] has: every
+    stored energy term of the groups and internal effects [mJ] by its ledger name, their sum ``internal_energy``,
+    and the reactions [N] of the sets in ``output.reactions`` as ``reaction_<set>_<x|y|z>``: the force the
+    supports apply to the body, f_int - f_ext on the set's nodes (the sign of a dynamic run's reaction columns)."""
+    from fdeck.engine import static
+
+    sp_ = static.StaticProblem(problem)
+    f = sp_.f_int(x)  # also leaves every group and effect evaluated at x for the terms below
+    out: dict[str, float] = {}
+    for src in list(problem.groups) + sp_.internal:
+        for term, v in zip(src.terms, src.term_values()):
+            if term.kind == static.STORED:
+                out[term.name] = out.get(term.name, 0.0) + float(v)
+    out["internal_energy"] = float(sum(out.values()))
+    r = f - sp_.f_ext
+    for name, nodes in problem.reactions.items():
+        for c, v in zip("xyz", r[nodes].sum(axis=0)):
+            out[f"reaction_{name}_{c}"] = float(v)
+    return out
 
 
 def _seed_positions(seed: str | None) -> np.ndarray | None:
