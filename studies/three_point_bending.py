@@ -3,6 +3,8 @@ buys (spurious-mode indicator, end rise) against what it costs (wall time, us pe
 
     python studies/three_point_bending.py [VARIANT ...]   # default: every deck in decks/three_point_bending/
     python studies/three_point_bending.py --report        # table + pictures from existing results only
+    python studies/three_point_bending.py --static DIR    # table + pictures of a finished static study
+                                                          # (fdeck study decks/studies/three_point_bending_static.yaml -o DIR)
 
 Results go to results/three_point_bending/<variant>/; the table to studies/out/three_point_bending.md (rows of
 variants not run this time are kept, so the 3 mm and 1 mm variants can be run separately) and the side views
@@ -23,16 +25,21 @@ RESULTS = ROOT / "results" / "three_point_bending"
 
 
 def side_view(variant: str, out: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    """Side view of a dynamic run's last frame (results/three_point_bending/<variant>/)."""
     import meshio
 
     frames = sorted((RESULTS / variant).glob(f"{variant}_*.vtu"))
     m = meshio.read(frames[-1])
-    x = m.points + m.point_data["displacement"]
-    hexes = m.cells_dict["hexahedron"]
+    draw(m.points + m.point_data["displacement"], m.cells_dict["hexahedron"], variant, out)
+
+
+def draw(x, hexes, variant: str, out: Path) -> None:
+    """The y = 0 faces of the half model at positions x (n_node, 3) [mm], mirrored about mid-span, into out."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
     fig, ax = plt.subplots(figsize=(8, 2.6))
     for sign in (1, -1):  # the model is the half x >= 100; mirror it
         for c in hexes:
@@ -85,11 +92,55 @@ def report(variants: list[str]) -> str:
     return table
 
 
+STATIC_HEADER = ["| variant | elements | spurious-mode indicator [mm] | end rise [mm] | punch force at 40 mm [N] | "
+                 "bending / internal energy | negative eigenvalues | Newton iterations | wall [s] |",
+                 "|---|---|---|---|---|---|---|---|---|"]
+
+
+def static_report(study_dir: Path) -> str:
+    """Table of a static study's variants (punch force of the whole 30 mm wide sample from the half slice's load
+    strip reaction, as ``report``) and the side view of each equilibrium to docs/img/three_point_bending_static_*."""
+    import numpy as np
+    import yaml
+
+    from fdeck.compile.problem import compile_deck
+    from fdeck.deck.model import Deck
+    from fdeck.study.variants import resolve
+
+    study = json.loads((study_dir / "study.json").read_text())
+    spec = ROOT / "decks" / "studies" / "three_point_bending_static.yaml"
+    base = (spec.parent / yaml.safe_load(spec.read_text())["base"]).resolve()
+    base_data = yaml.safe_load(base.read_text())
+    img = ROOT / "docs" / "img"
+    rows = []
+    for row in study["rows"]:
+        if row["status"] != "completed":
+            rows.append(f"| {row['name']} | {row['elements']} | {row['status']}: {row['message']} | | | | | | |")
+            continue
+        run = Path(row["run_dir"])
+        s = json.loads((run / "summary.json").read_text())
+        data = resolve(base_data, row["settings"])
+        width = data["mesh"]["block"]["size"][1]
+        force = -2.0 * (30.0 / width) * s["final"]["reaction_load_line_z"]
+        share = s["final"].get("bending_energy", 0.0) / s["final"]["internal_energy"]
+        rows.append(f"| {row['name']} | {s['elements']} | {s['measures']['spurious_mode_indicator']:.4f} | "
+                    f"{s['measures']['end_rise']:.2f} | {force:.0f} | {share:.3f} | "
+                    f"{s.get('negative_eigenvalues', '')} | {s['newton_iterations']} | {s['wall_time']:.0f} |")
+        problem = compile_deck(Deck.model_validate(data), base.parent)
+        x = np.load(run / "final_positions.npy")
+        draw(x, np.asarray(problem.groups[0].conn), row["name"], img / f"three_point_bending_static_{row['name']}.png")
+    return "\n".join(STATIC_HEADER + rows)
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("variants", nargs="*")
     ap.add_argument("--report", action="store_true")
+    ap.add_argument("--static", type=Path, help="folder of a finished three_point_bending_static study")
     args = ap.parse_args()
+    if args.static:
+        print(static_report(args.static))
+        return
     variants = args.variants or sorted(p.stem for p in DECKS.glob("*.yaml"))
     if not args.report:
         for v in variants:
