@@ -3,7 +3,8 @@
 (a) a plate bent to radius R reads chi = 1/R along the bent fibre and 0 along the other; (b) rigid motions and
 homogeneous in-plane deformations read chi = 0 and give no force; (c) forces = dW/dx by central differences;
 plus the energy column and balance of a run, the stable step against the exact highest frequency and in a
-free-vibration run, thread-independent results, and located errors for bad input.
+free-vibration run, thread-independent results, and located errors for bad input; the in-plane laws: an arc in
+the plate's plane, forces = dW/dx with both modes, and the kink energy of a shear jump across a fibre line.
 """
 
 from __future__ import annotations
@@ -215,17 +216,23 @@ def lumped_mass(g, n_node):
 
 
 @pytest.mark.verification
+@pytest.mark.parametrize("in_plane", [False, True], ids=["out_of_plane", "with_in_plane"])
 @pytest.mark.parametrize("state", ["flat", "bent_and_kinked"])
-def test_stable_step_bounds_the_highest_bending_frequency(state):
+def test_stable_step_bounds_the_highest_bending_frequency(state, in_plane):
     """Requirement: the effect's step is at most the exact critical step 2/omega_max of its own stiffness (FD
     Hessian of the bending energy, lumped masses, generalised eigenproblem) and not below a third of it. The
-    continuum is made negligible (E = 1e-6 MPa). Measured ratios 0.82 (flat) and 0.78 (bent): the Gershgorin
-    bound is tight for the zig-zag that sets omega_max."""
+    continuum is made negligible (E = 1e-6 MPa). Measured ratios 0.82 (flat) and 0.78 (bent) out of plane: the
+    Gershgorin bound is tight for the zig-zag that sets omega_max; with in-plane laws as stiff again 0.58 / 0.60
+    (the in-plane and out-of-plane hinges of one element add their rows, a looser bound)."""
     from scipy.linalg import eigh
 
     X, conn = plate(spacing_seed=8, nx=6, ny=2, nz=2, size=(18.0, 6.0, 2.0))
-    g, eff = make(X, conn, {"warp": {"D1": 50.0, "D2": 5e4}, "weft": {"D1": 30.0}}, E=1e-6)
-    x = X if state == "flat" else cylinder(X, 12.0) + 0.05 * np.random.default_rng(9).normal(size=X.shape)
+    laws = {"warp": {"D1": 50.0, "D2": 5e4}, "weft": {"D1": 30.0}}
+    if in_plane:
+        laws["in_plane"] = {"warp": {"D1": 50.0, "D2": 5e4}, "weft": {"D1": 30.0}}
+    g, eff = make(X, conn, laws, E=1e-6)
+    x = X if state == "flat" else cylinder(in_plane_arc(X, 20.0) if in_plane else X, 12.0) + \
+        0.05 * np.random.default_rng(9).normal(size=X.shape)
     forces(eff, x)
     dt_est = eff.stable_dt()
     K = central_stiffness(lambda y: forces(eff, y), x, 1e-6)
@@ -371,6 +378,7 @@ BAD_CARDS = dedent("""\
           - {type: fibre_bending, thickness: 0, wrap: {D1: 1}}
           - {type: fibre_bending, thickness: 1, warp: {D1: 0}}
           - {type: fibre_bending, thickness: 1}
+          - {type: fibre_bending, thickness: 1, in_plane: {}}
     steps: [{duration: 1.0e-3}]
     """)
 
@@ -391,7 +399,8 @@ def test_bad_cards_are_located_errors(tmp_path):
                 ("11:", "effects[3].warp: moments in `table` must not decrease"),
                 ("12:", "effects[4].thickness: must be > 0"), ("12:", "effects[4].wrap: unknown key 'wrap'"),
                 ("13:", "effects[5].warp: D1 and D2 are both zero"),
-                ("14:", "effects[6]: give a moment law for `warp`, `weft` or both")]
+                ("14:", "effects[6]: give a moment law for `warp`, `weft`, `in_plane` or several"),
+                ("15:", "effects[7].in_plane: give an in-plane moment law for `warp`, `weft` or both")]
     for line, message in expected:
         assert any(f"bad.yaml:{line}" in row and message in row for row in text.splitlines()), (line, message, text)
 
@@ -511,3 +520,90 @@ def test_bending_given_by_both_material_and_section_is_a_located_error():
     (path, message), = exc.value.problems
     assert path == ("sections", 0, "effects", 0)
     assert "given twice" in message and "materials.fab.fibre_bending" in message
+
+
+# ------------------------------------------------------------------------------------------------------------------
+# in-plane bending (the `in_plane` laws)
+# ------------------------------------------------------------------------------------------------------------------
+
+def in_plane_arc(X, R):
+    """Bend the plate in its own plane (about z): the line y = 0 becomes a circle of radius R centred at (0, R)
+    with arc length = x, and every line y = c a concentric circle over the same angle x / R (centre on the +y
+    side): the x fibres turn by 1 / R per unit reference length, counter-clockwise about +z."""
+    x = X.copy()
+    rho = R - X[:, 1]
+    x[:, 0] = rho * np.sin(X[:, 0] / R)
+    x[:, 1] = R - rho * np.cos(X[:, 0] / R)
+    return x
+
+
+IN_PLANE = {"in_plane": {"warp": {"D1": 40.0, "D2": 2000.0}, "weft": {"D1": 30.0}}}
+
+
+@pytest.mark.verification
+def test_plate_bent_in_its_plane_reads_the_arc_curvature_on_the_in_plane_hinges_only():
+    """Requirement: a plate with uneven element lengths bent in its plane about z (nodes on concentric arcs over
+    the angle x / R) reads chi = 1 / R on every in-plane warp hinge (the curvature per reference length, as the
+    out-of-plane hinges read it), and 0 on the out-of-plane ones; bent about y instead (out of plane), the reverse.
+    Every x edge of an element is a chord over the same angle, so the element's warp tangent is exact and so is
+    the hinge: the tolerance 1e-10 is round-off (measured below 1e-13)."""
+    X, conn = plate(spacing_seed=1)
+    _, eff = make(X, conn, {"warp": POLY, **IN_PLANE})
+    R = 40.0
+    forces(eff, in_plane_arc(X, R))
+    chi = eff.curvatures()
+    assert chi["warp_in_plane"].size == 7 * 4 * 3 * 2
+    assert np.abs(chi["warp_in_plane"] * R - 1.0).max() < 1e-10
+    assert np.abs(chi["warp"]).max() < 1e-12 / R
+    assert np.abs(chi["weft_in_plane"]).max() < 1e-12 / R  # the weft lines stay straight (radial)
+    forces(eff, cylinder(X, R))
+    chi = eff.curvatures()
+    assert np.abs(chi["warp_in_plane"]).max() < 1e-12 / R
+    assert np.abs(chi["warp"] * R - 1.0).max() < 0.02
+
+
+def test_in_plane_bending_forces_are_the_energy_gradient_and_rigid_motion_free():
+    """Requirement: with in-plane and out-of-plane laws together, on a plate bent both ways and moved randomly
+    (0.15 mm on 3 mm elements), forces = dW/dx by central differences (tolerance 1e-6 of the largest force, as in
+    test_forces_are_the_energy_gradient: round-off ~1e-10, a missing chain-rule term ~1e-2); a rigid motion of
+    that state keeps every curvature (1e-12) and rotates the forces (1e-10)."""
+    X, conn = plate(spacing_seed=6, nx=5, ny=3, nz=2, size=(15.0, 9.0, 2.0))
+    _, eff = make(X, conn, {"warp": POLY, "weft": TABLE, **IN_PLANE}, WARP_X)
+    x = cylinder(in_plane_arc(X, 25.0), 30.0) + 0.15 * np.random.default_rng(7).normal(size=X.shape)
+    f = forces(eff, x)
+    chi1 = eff.chi.copy()
+    assert np.abs(eff.chi[eff.mode == 1]).max() > 1e-2  # really bent in plane
+
+    def energy(y):
+        forces(eff, y)
+        return stored_energy(eff)
+    fd = central_gradient(energy, x, h=1e-6)
+    assert np.abs(f - fd).max() < 1e-6 * np.abs(fd).max()
+    Q = rotation([0.3, 1.0, -2.0], np.radians(150.0))
+    f2 = forces(eff, x @ Q.T - 7.0)
+    assert np.abs(eff.chi - chi1).max() < 1e-12 * np.abs(chi1).max()
+    assert np.abs(f2 - f @ Q.T).max() < 1e-10 * np.abs(f).max()
+
+
+@pytest.mark.verification
+def test_a_shear_jump_across_a_warp_line_costs_the_weft_in_plane_hinges_their_kink_energy():
+    """Requirement: the energy that gives shear bands a width. A plate sheared by +g below the warp line y = 6 and
+    by -g above it (u_x = g (6 - |y - 6|), continuous; the shear angle jumps by 2 atan g there) kinks every weft
+    fibre in plane by 2 atan g at that line and nowhere else: the weft's in-plane hinges across it read
+    chi = 2 atan(g) / L (L = 3 mm between the element centres), every other hinge 0 (1e-12 / L), and the stored
+    energy is the closed form sum over those hinges and levels of D1 chi^2 / 2 x V_h / T (1e-12 relative)."""
+    X, conn = plate(nx=8, ny=4, nz=2, size=(24.0, 12.0, 2.0))
+    D1, T, g = 30.0, 2.0, 0.2
+    _, eff = make(X, conn, {"in_plane": {"weft": {"D1": D1}}}, WARP_X, thickness=T)
+    x = X.copy()
+    x[:, 0] += g * (6.0 - np.abs(X[:, 1] - 6.0))
+    forces(eff, x)
+    yc = X[conn].mean(axis=1)[:, 1]
+    across = (yc[eff.left] < 6.0) & (yc[eff.right] > 6.0)
+    chi = 2.0 * np.arctan(g) / 3.0
+    assert across.sum() == 8 * 2  # one hinge per weft line (8 along x) per element layer (2)
+    assert np.abs(np.abs(eff.chi[across]) - chi).max() < 1e-12 * chi
+    assert np.abs(eff.chi[~across]).max() < 1e-12 / 3.0
+    V_h = 3.0 * 3.0 * 1.0 / 2.0  # each level carries half an element's volume
+    expected = across.sum() * 2 * 0.5 * D1 * chi**2 * V_h / T
+    assert stored_energy(eff) == pytest.approx(expected, rel=1e-12)

@@ -56,6 +56,23 @@ def _check_table(table) -> None:
         raise ValueError("every moment in `table` is zero: this family would not bend")
 
 
+class InPlaneLaws(Card):
+    """Moment laws of the fibres bent in the fabric's plane (about the section normal): the second-gradient energy
+    that gives a jump of shear angle across a fibre line a width (Ferretti, Madeo, dell'Isola and Boisse 2014;
+    Barbagallo et al. 2017). M per unit width of the specimen of thickness T, as for out-of-plane bending."""
+
+    warp: BendingLaw | None = Field(None, description="In-plane moment law of warp fibres (their curvature in the "
+                                    "fabric plane); leave out if warp does not bend in plane.")
+    weft: BendingLaw | None = Field(None, description="In-plane moment law of weft fibres; leave out if weft does "
+                                    "not bend in plane.")
+
+    @model_validator(mode="after")
+    def _some_family(self):
+        if self.warp is None and self.weft is None:
+            raise ValueError("give an in-plane moment law for `warp`, `weft` or both")
+        return self
+
+
 class FibreBendingLaws(Card):
     """The moment laws of a fabric's fibre families and the specimen thickness they are per: the body of a
     `fibre_bending` section effect, and the `fibre_bending` field of a `fabric_hyper` material (a fabric's own
@@ -68,11 +85,14 @@ class FibreBendingLaws(Card):
                                     "leave out if warp does not bend.")
     weft: BendingLaw | None = Field(None, description="Moment law of weft fibres (curvature along weft); "
                                     "leave out if weft does not bend.")
+    in_plane: InPlaneLaws | None = Field(None, description="Moment laws of the fibres bent in the fabric's plane "
+                                         "(in-plane curvature, hinges between the same neighbours); leave out for "
+                                         "out-of-plane bending only.")
 
     @model_validator(mode="after")
     def _some_family(self):
-        if self.warp is None and self.weft is None:
-            raise ValueError("give a moment law for `warp`, `weft` or both")
+        if self.warp is None and self.weft is None and self.in_plane is None:
+            raise ValueError("give a moment law for `warp`, `weft`, `in_plane` or several")
         return self
 
 

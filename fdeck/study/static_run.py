@@ -84,7 +84,11 @@ def _run_static(deck_data: dict, base_dir: Path, out_dir: Path, options: dict, s
                                for c, v in zip(m.columns, m.evaluate(res.x, zero))}
         summary["final"] = final_values(problem, res.x)
         if options.get("stability", False):
-            summary["negative_eigenvalues"] = static.negative_eigenvalues(problem, res.x)
+            try:
+                summary["negative_eigenvalues"] = static.negative_eigenvalues(problem, res.x)
+            except (ValueError, RuntimeError) as exc:  # off-diagonal pivots or an exactly singular tangent: the
+                summary["negative_eigenvalues"] = None  # answer stands, its stability is not known
+                summary["stability_message"] = str(exc)
         np.save(out_dir / POSITIONS, res.x)
     else:
         summary["message"] = (f"static solve stopped at load factor {res.load_factor:.3g}" if reached is None else

@@ -22,11 +22,18 @@ Kinematics (per section, in the reference fibre frame f1 warp, f2 weft, f3 thick
   +f_i and -f_i. Each pair of neighbours (l, r) shares a *hinge* at every level. Its curvature is the bending
   angle between the two sections' fibre tangents over the reference distance L of their level points:
       chi = 2 asin(s / 2) / L - chi_0,   s = nbar . (u_r - u_l),   u = t_i / |t_i|,   nbar = unit(n_l + n_r),
-  i.e. the rotation of the fibre about the in-plane axis normal to it (out-of-plane bending; in-plane fibre
-  bending and twist are not modelled), exact for a circular arc. chi_0 is its value in the reference
-  configuration (zero on a flat blank). chi > 0 when the fibre turns towards the +f3 side (centre of curvature
-  on that side). Rigid motions leave every chi unchanged; any homogeneous deformation gives equal tangents, hence
-  chi = chi_0.
+  i.e. the rotation of the fibre about the in-plane axis normal to it (out-of-plane bending), exact for a
+  circular arc. chi_0 is its value in the reference configuration (zero on a flat blank). chi > 0 when the fibre
+  turns towards the +f3 side (centre of curvature on that side). Rigid motions leave every chi unchanged; any
+  homogeneous deformation gives equal tangents, hence chi = chi_0.
+* In-plane bending (``in_plane`` laws, optional): hinges between the same neighbours whose curvature is the
+  rotation of the fibre about the section normal,
+      chi = asin(s) / L - chi_0,   s = nbar . (u_l x u_r),
+  exact for an arc in the fabric's plane, positive when the fibre turns counter-clockwise about nbar. A jump of
+  shear angle across a fibre line kinks the other family's fibres in the plane, so this energy gives such jumps
+  (and the element-scale shear bands of forming) a width set by the ratio of the in-plane bending rigidity to the
+  shear stiffness: the second-gradient energy of Ferretti et al. 2014 and Barbagallo et al. 2017, discretised
+  like the out-of-plane one. Twist is not modelled.
 * Energy: W = sum over hinges and levels of w(chi) V_h / T, with V_h = (V_l,a + V_r,a) / 2 (V_e,a the reference
   volume of the element's half on the level's side): every element lends half of each level's volume to each of
   its two hinges per family, so a uniformly bent sheet stores w(chi) per unit area. The forces are the exact
@@ -54,10 +61,16 @@ References (formulations used, by reference): E. Onate, F. Zarate, Rotation-free
 elements, IJNME 47 (2000) (BST: curvature from neighbouring elements' positions); F.G. Flores and E. Onate's
 large-strain extensions of the BST triangle (2005); E. Grinspun et al., Discrete shells, SCA 2003 (bending energy per
 hinge from the angle across shared edges); P. Boisse, S. Mathieu, N. Hamila, ECCM17 2016 [B] and S. Mathieu et al.
-(2015, 2016): local fibre bending stiffness for 3D interlocks on hexahedra, two levels through the thickness.
+(2015, 2016): local fibre bending stiffness for 3D interlocks on hexahedra, two levels through the thickness;
+M. Ferretti, A. Madeo, F. dell'Isola, P. Boisse, Modeling the onset of shear boundary layers in fibrous composite
+reinforcements by second-gradient theory, ZAMP 65 (2014), and G. Barbagallo, A. Madeo, I. Azehaf, I. Giorgio,
+F. Morestin, P. Boisse, Bias extension test on an unbalanced woven composite reinforcement: experiments and
+modeling via a second-gradient continuum approach, J. Compos. Mater. 51 (2017): in-plane fibre bending (second
+gradient) in fabric forming.
 
 Shapes: x (n_node, 3) [mm]; per element e, level a in {0 lower, 1 upper} (along f3), family i in {0 warp, 1 weft}:
-G (n_el, 2, 2, 8) dN_n/dX . f_i at the level point [1/mm]; per hinge h: chi (n_h, 2) [1/mm], M (n_h, 2) [N].
+G (n_el, 2, 2, 8) dN_n/dX . f_i at the level point [1/mm]; per hinge h (family fam, mode 0 out of plane or 1 in
+plane): chi (n_h, 2) [1/mm], M (n_h, 2) [N].
 """
 
 from __future__ import annotations
@@ -282,18 +295,17 @@ def tangents(x, conn, G, t, nrm, cn):
 
 
 @njit
-def _side_adjoint(t, nrm, cn, e, a, fam, q0, q1, q2, sign, inv_t, nb0, nb1, nb2, adj, dchi, h, side, scale,
-                  dchids):
-    """ds/dt_j of one side's tangents (j = warp, weft): through its normal (p = (I - n n) q / |c|, dc = ...) and,
-    for the hinge's family, through its unit tangent (sign (I - u u) nbar / |t|). Stores scale * ds/dt in adj and
-    dchids * |ds/dt| in dchi."""
+def _side_adjoint(t, nrm, cn, e, a, fam, q0, q1, q2, inv_t, b0, b1, b2, adj, dchi, h, side, scale, dchids):
+    """ds/dt_j of one side's tangents (j = warp, weft): through its normal (p = (I - n n) q / |c|, q = ds/dn) and,
+    for the hinge's family, through its unit tangent ((I - u u) b / |t|, b = ds/du). Stores scale * ds/dt in adj
+    and dchids * |ds/dt| in dchi."""
     n0, n1, n2 = nrm[e, a, 0], nrm[e, a, 1], nrm[e, a, 2]
     p0, p1, p2 = _perp(n0, n1, n2, q0, q1, q2, 1.0 / cn[e, a])
     # d(p . t_0 x t_1) = dt_0 . (t_1 x p) + dt_1 . (p x t_0)
     w0 = _cross(t[e, a, 1, 0], t[e, a, 1, 1], t[e, a, 1, 2], p0, p1, p2)
     w1 = _cross(p0, p1, p2, t[e, a, 0, 0], t[e, a, 0, 1], t[e, a, 0, 2])
     u0, u1, u2 = t[e, a, fam, 0] * inv_t, t[e, a, fam, 1] * inv_t, t[e, a, fam, 2] * inv_t
-    f0, f1, f2 = _perp(u0, u1, u2, nb0, nb1, nb2, sign * inv_t)
+    f0, f1, f2 = _perp(u0, u1, u2, b0, b1, b2, inv_t)
     for j in range(2):
         v0, v1, v2 = (w0[0], w0[1], w0[2]) if j == 0 else (w1[0], w1[1], w1[2])
         if j == fam:
@@ -307,14 +319,14 @@ def _side_adjoint(t, nrm, cn, e, a, fam, q0, q1, q2, sign, inv_t, nb0, nb1, nb2,
 
 
 @njit_parallel
-def hinges(t, nrm, cn, left, right, fam, L, V, chi0, laws, inv_T, Gsum, chi, moment, energy, adj, dchi, kS):
+def hinges(t, nrm, cn, left, right, fam, mode, L, V, chi0, laws, inv_T, Gsum, chi, moment, energy, adj, dchi, kS):
     """Curvature, moment, energy and energy adjoints of every hinge h (n_h,) at both levels.
 
-    Inputs: t, nrm, cn from ``tangents``; left, right, fam (n_h,) elements and family; L, V, chi0 (n_h, 2)
-    reference distance [mm], volume [mm^3], reference curvature [1/mm]; laws (2, LAW_SIZE); inv_T = 1/T [1/mm];
-    Gsum (n_el, 2, 2) = sum_n |G|. Outputs: chi, moment (n_h, 2) [1/mm], [N]; energy (n_h,) [mJ];
-    adj (n_h, 2, 2 sides, 2 tangents, 3) = dW/dt [N mm]; dchi (n_h, 2, 2, 2) = |dchi/dt| [1/mm];
-    kS (n_h, 2) = k_h sum_m |g_h,m| for the stable step [N/mm].
+    Inputs: t, nrm, cn from ``tangents``; left, right, fam, mode (n_h,) elements, family and mode (0 out of
+    plane, 1 in plane); L, V, chi0 (n_h, 2) reference distance [mm], volume [mm^3], reference curvature [1/mm];
+    laws (4, LAW_SIZE), row fam + 2 mode; inv_T = 1/T [1/mm]; Gsum (n_el, 2, 2) = sum_n |G|. Outputs: chi, moment
+    (n_h, 2) [1/mm], [N]; energy (n_h,) [mJ]; adj (n_h, 2, 2 sides, 2 tangents, 3) = dW/dt [N mm];
+    dchi (n_h, 2, 2, 2) = |dchi/dt| [1/mm]; kS (n_h, 2) = k_h sum_m |g_h,m| for the stable step [N/mm].
     """
     for h in prange(left.shape[0]):
         l, r, i = left[h], right[h], fam[h]
@@ -322,26 +334,36 @@ def hinges(t, nrm, cn, left, right, fam, L, V, chi0, laws, inv_T, Gsum, chi, mom
         for a in range(2):
             tl = math.sqrt(t[l, a, i, 0] ** 2 + t[l, a, i, 1] ** 2 + t[l, a, i, 2] ** 2)
             tr = math.sqrt(t[r, a, i, 0] ** 2 + t[r, a, i, 1] ** 2 + t[r, a, i, 2] ** 2)
-            d0 = t[r, a, i, 0] / tr - t[l, a, i, 0] / tl
-            d1 = t[r, a, i, 1] / tr - t[l, a, i, 1] / tl
-            d2 = t[r, a, i, 2] / tr - t[l, a, i, 2] / tl
+            ul0, ul1, ul2 = t[l, a, i, 0] / tl, t[l, a, i, 1] / tl, t[l, a, i, 2] / tl
+            ur0, ur1, ur2 = t[r, a, i, 0] / tr, t[r, a, i, 1] / tr, t[r, a, i, 2] / tr
             m0, m1, m2 = nrm[l, a, 0] + nrm[r, a, 0], nrm[l, a, 1] + nrm[r, a, 1], nrm[l, a, 2] + nrm[r, a, 2]
             mn = math.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
             nb0, nb1, nb2 = m0 / mn, m1 / mn, m2 / mn
-            half = 0.5 * (nb0 * d0 + nb1 * d1 + nb2 * d2)  # sin of half the bending angle
-            c = 2.0 * math.asin(half) / L[h, a] - chi0[h, a]
-            dchids = 1.0 / (L[h, a] * math.sqrt(1.0 - half * half))  # d chi / d s
-            mom, w, dm = bending_law(c, laws[i])
+            if mode[h] == 0:
+                # out of plane: s = nbar . (u_r - u_l) = 2 sin(angle / 2), chi = 2 asin(s / 2) / L
+                d0, d1, d2 = ur0 - ul0, ur1 - ul1, ur2 - ul2
+                half = 0.5 * (nb0 * d0 + nb1 * d1 + nb2 * d2)
+                c = 2.0 * math.asin(half) / L[h, a] - chi0[h, a]
+                dchids = 1.0 / (L[h, a] * math.sqrt(1.0 - half * half))
+                bl0, bl1, bl2 = -nb0, -nb1, -nb2  # ds/du_l
+                br0, br1, br2 = nb0, nb1, nb2  # ds/du_r
+            else:
+                # in plane: s = nbar . (u_l x u_r) = sin(angle about nbar), chi = asin(s) / L
+                d0, d1, d2 = _cross(ul0, ul1, ul2, ur0, ur1, ur2)
+                sn = nb0 * d0 + nb1 * d1 + nb2 * d2
+                c = math.asin(sn) / L[h, a] - chi0[h, a]
+                dchids = 1.0 / (L[h, a] * math.sqrt(1.0 - sn * sn))
+                bl0, bl1, bl2 = _cross(ur0, ur1, ur2, nb0, nb1, nb2)
+                br0, br1, br2 = _cross(nb0, nb1, nb2, ul0, ul1, ul2)
+            mom, w, dm = bending_law(c, laws[i + 2 * mode[h]])
             chi[h, a] = c
             moment[h, a] = mom
             e_h += w * V[h, a] * inv_T
-            # ds/dnl = ds/dnr = q = (I - nbar nbar) d / |m|
+            # ds/dnl = ds/dnr = q = (I - nbar nbar) ds/dnbar / |m|, ds/dnbar = d
             q0, q1, q2 = _perp(nb0, nb1, nb2, d0, d1, d2, 1.0 / mn)
             scale = inv_T * V[h, a] * mom * dchids  # dW/ds
-            _side_adjoint(t, nrm, cn, l, a, i, q0, q1, q2, -1.0, 1.0 / tl, nb0, nb1, nb2, adj, dchi, h, 0, scale,
-                          dchids)
-            _side_adjoint(t, nrm, cn, r, a, i, q0, q1, q2, 1.0, 1.0 / tr, nb0, nb1, nb2, adj, dchi, h, 1, scale,
-                          dchids)
+            _side_adjoint(t, nrm, cn, l, a, i, q0, q1, q2, 1.0 / tl, bl0, bl1, bl2, adj, dchi, h, 0, scale, dchids)
+            _side_adjoint(t, nrm, cn, r, a, i, q0, q1, q2, 1.0 / tr, br0, br1, br2, adj, dchi, h, 1, scale, dchids)
             s_abs = 0.0
             for j in range(2):
                 s_abs += dchi[h, a, 0, j] * Gsum[l, a, j] + dchi[h, a, 1, j] * Gsum[r, a, j]
@@ -351,9 +373,9 @@ def hinges(t, nrm, cn, left, right, fam, L, V, chi0, laws, inv_T, Gsum, chi, mom
 
 @njit_parallel
 def element_forces(G, el_hinge, adj, fe):
-    """fe (n_el, 8, 3) = sum over the element's hinges of dW/dt . dt/dx_n [N]; el_hinge (n_el, 2 families, 2) holds
-    the hinge to the - neighbour (column 0, where the element is the hinge's right side) and to the + neighbour
-    (column 1, left side), -1 if none. Fixed summation order: deterministic on any thread count."""
+    """fe (n_el, 8, 3) = sum over the element's hinges of dW/dt . dt/dx_n [N]; el_hinge (n_el, 4, 2) holds, per
+    family + 2 mode, the hinge to the - neighbour (column 0, where the element is the hinge's right side) and to
+    the + neighbour (column 1, left side), -1 if none. Fixed summation order: deterministic on any thread count."""
     for e in prange(G.shape[0]):
         for n in range(8):
             for c in range(3):
@@ -363,9 +385,9 @@ def element_forces(G, el_hinge, adj, fe):
                 s0 = 0.0
                 s1 = 0.0
                 s2 = 0.0
-                for i in range(2):
+                for k in range(el_hinge.shape[1]):
                     for col in range(2):
-                        h = el_hinge[e, i, col]
+                        h = el_hinge[e, k, col]
                         if h >= 0:
                             side = 1 - col
                             s0 += adj[h, a, side, j, 0]
@@ -385,9 +407,9 @@ def element_rows(G, el_hinge, dchi, kS, rows):
         for n in range(8):
             acc = 0.0
             for a in range(2):
-                for i in range(2):
+                for k in range(el_hinge.shape[1]):
                     for col in range(2):
-                        h = el_hinge[e, i, col]
+                        h = el_hinge[e, k, col]
                         if h >= 0:
                             side = 1 - col
                             g = dchi[h, a, side, 0] * abs(G[e, a, 0, n]) + dchi[h, a, side, 1] * abs(G[e, a, 1, n])
@@ -428,20 +450,21 @@ class FibreBendingEffect(Effect):
     subcycling_safe = True  # its hinges' steps enter the levels (element_dt)
     terms = (Term("bending_energy", STORED),)
 
-    def __init__(self, name, group, X, geo, left, right, fam, laws, thickness):
+    def __init__(self, name, group, X, geo, left, right, fam, laws, thickness, mode=None):
         self.name, self.group = name, group
         self.conn = group.conn
         self.G = geo["G"]
         self.Gsum = np.ascontiguousarray(np.abs(self.G).sum(axis=3))
         self.left, self.right, self.fam = left, right, fam
+        self.mode = np.zeros(len(left), np.int64) if mode is None else mode  # 0 out of plane, 1 in plane
         P, Vlev = geo["P"], geo["V"]
         self.L = np.linalg.norm(P[right] - P[left], axis=2)  # (n_h, 2)
         self.V = 0.5 * (Vlev[left] + Vlev[right])
         self.laws, self.inv_T = laws, 1.0 / thickness
         n_el, n_h = len(self.conn), len(left)
-        self.el_hinge = np.full((n_el, 2, 2), -1, np.int64)
-        self.el_hinge[right, fam, 0] = np.arange(n_h)
-        self.el_hinge[left, fam, 1] = np.arange(n_h)
+        self.el_hinge = np.full((n_el, 4 if self.mode.any() else 2, 2), -1, np.int64)
+        self.el_hinge[right, fam + 2 * self.mode, 0] = np.arange(n_h)
+        self.el_hinge[left, fam + 2 * self.mode, 1] = np.arange(n_h)
         self.t, self.nrm, self.cn = np.zeros((n_el, 2, 2, 3)), np.zeros((n_el, 2, 3)), np.zeros((n_el, 2))
         self.chi, self.moment, self.e_h = np.zeros((n_h, 2)), np.zeros((n_h, 2)), np.zeros(n_h)
         self.adj, self.dchi, self.kS = np.zeros((n_h, 2, 2, 2, 3)), np.zeros((n_h, 2, 2, 2)), np.zeros((n_h, 2))
@@ -460,7 +483,8 @@ class FibreBendingEffect(Effect):
 
     def _evaluate(self, x):
         tangents(x, self.conn, self.G, self.t, self.nrm, self.cn)
-        hinges(self.t, self.nrm, self.cn, self.left, self.right, self.fam, self.L, self.V, self.chi0, self.laws,
+        hinges(self.t, self.nrm, self.cn, self.left, self.right, self.fam, self.mode, self.L, self.V, self.chi0,
+               self.laws,
                self.inv_T, self.Gsum, self.chi, self.moment, self.e_h, self.adj, self.dchi, self.kS)
 
     def add_force(self, t, x, v, f):
@@ -526,35 +550,50 @@ class FibreBendingEffect(Effect):
         return (R / m)[self.conn].max(axis=1)
 
     def curvatures(self) -> dict[str, np.ndarray]:
-        """Current hinge curvatures [1/mm] per family: name -> (n_hinge_of_family, 2 levels)."""
-        return {FAMILIES[i]: self.chi[self.fam == i] for i in range(2) if (self.fam == i).any()}
+        """Current hinge curvatures [1/mm] per family and mode: 'warp', 'weft' (out of plane), 'warp_in_plane',
+        'weft_in_plane' -> (n_hinge, 2 levels); only those the effect has."""
+        out = {}
+        for m, suffix in ((0, ""), (1, "_in_plane")):
+            for i in range(2):
+                sel = (self.fam == i) & (self.mode == m)
+                if sel.any():
+                    out[FAMILIES[i] + suffix] = self.chi[sel]
+        return out
 
 
 def build(card: FibreBending, ctx) -> FibreBendingEffect:
     """Registry hook: one effect per element group of the section (``ctx.group``)."""
     g = ctx.group
-    laws = np.zeros((2, LAW_SIZE))
-    left, right, fam = [], [], []
+    laws = np.zeros((4, LAW_SIZE))
+    left, right, fam, mode = [], [], [], []
+    inp = card.in_plane
+    wanted = [(i, 0, law) for i, law in enumerate((card.warp, card.weft))]
+    wanted += [(i, 1, law) for i, law in enumerate((inp.warp, inp.weft) if inp is not None else (None, None))]
     try:
         geo = level_geometry(ctx.X, g.conn, g.frame)
-        for i, law in enumerate((card.warp, card.weft)):
+        neighbours = {}
+        for i, m, law in wanted:
             if law is None:
                 continue
-            laws[i] = pack_law(law)
-            nb = fibre_neighbours(ctx.X, g.conn, g.frame, i)
+            laws[i + 2 * m] = pack_law(law)
+            if i not in neighbours:
+                neighbours[i] = fibre_neighbours(ctx.X, g.conn, g.frame, i)
+            nb = neighbours[i]
             e = np.nonzero(nb[:, 1] >= 0)[0]
             left.append(e)
             right.append(nb[e, 1])
             fam.append(np.full(len(e), i, np.int64))
+            mode.append(np.full(len(e), m, np.int64))
     except MeshNotAligned as exc:
         ids = g.ids[exc.local]
         listed = ", ".join(map(str, ids[:10])) + (", ..." if len(ids) > 10 else "")
         raise CompileError([(ctx.path, f"{len(ids)} elements of {g.name} {exc.what} (ids {listed})")]) from None
-    left, right, fam = (np.concatenate(a).astype(np.int64) for a in (left, right, fam))
+    left, right, fam, mode = (np.concatenate(a).astype(np.int64) for a in (left, right, fam, mode))
     if len(left) == 0:
         raise CompileError([(ctx.path, f"no two elements of {g.name} are neighbours along a bending family: "
                              "fibre bending needs at least two elements along warp or weft")])
-    effect = FibreBendingEffect(f"fibre_bending:{g.name}", g, ctx.X, geo, left, right, fam, laws, card.thickness)
+    effect = FibreBendingEffect(f"fibre_bending:{g.name}", g, ctx.X, geo, left, right, fam, laws, card.thickness,
+                                mode)
     effect.group_index = next((i for i, h in enumerate(getattr(ctx, "groups", ())) if h is g), None)
     return effect
 
