@@ -4,7 +4,7 @@ buys (spurious-mode indicator, end rise) against what it costs (wall time, us pe
     python studies/three_point_bending.py [VARIANT ...]   # default: every deck in decks/three_point_bending/
     python studies/three_point_bending.py --report        # table + pictures from existing results only
     python studies/three_point_bending.py --static DIR    # table + pictures of a finished static study
-                                                          # (fdeck study decks/studies/three_point_bending_static.yaml -o DIR)
+                                                          # (fdeck study decks/studies/three_point_bending_static*.yaml -o DIR)
 
 Results go to results/three_point_bending/<variant>/; the table to studies/out/three_point_bending.md (rows of
 variants not run this time are kept, so the 3 mm and 1 mm variants can be run separately) and the side views
@@ -98,7 +98,7 @@ STATIC_HEADER = ["| variant | elements | spurious-mode indicator [mm] | end rise
 
 
 def static_report(study_dir: Path) -> str:
-    """Table of a static study's variants (punch force of the whole 30 mm wide sample from the half slice's load
+    """Table of a static study's variants (three_point_bending_static*.yaml; punch force of the whole 30 mm wide sample from the half slice's load
     strip reaction, as ``report``) and the side view of each equilibrium to docs/img/three_point_bending_static_*."""
     import numpy as np
     import yaml
@@ -108,8 +108,9 @@ def static_report(study_dir: Path) -> str:
     from fdeck.study.variants import resolve
 
     study = json.loads((study_dir / "study.json").read_text())
-    spec = ROOT / "decks" / "studies" / "three_point_bending_static.yaml"
-    base = (spec.parent / yaml.safe_load(spec.read_text())["base"]).resolve()
+    spec = Path(study["study"])
+    spec = spec if spec.is_absolute() else ROOT / spec
+    base = (spec.parent / study["base"]).resolve()
     base_data = yaml.safe_load(base.read_text())
     img = ROOT / "docs" / "img"
     rows = []
