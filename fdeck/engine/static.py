@@ -115,14 +115,18 @@ class StaticProblem:
         return stored - lam * float(np.sum(self.f_ext * (x - self.X)))
 
     def smallest_edge(self) -> float:
-        """Smallest distance [mm] between two nodes of one element in the reference configuration."""
+        """Smallest nonzero distance [mm] between two nodes of one element in the reference configuration (an
+        element that repeats a node, a triangle stored as a quad, has a zero one, which is no edge)."""
         out = np.inf
         for g in self.problem.groups:
             xe = self.X[np.asarray(g.conn)]  # (n_el, k, 3)
             k = xe.shape[1]
             for a in range(k):
                 for b in range(a + 1, k):
-                    out = min(out, float(np.linalg.norm(xe[:, a] - xe[:, b], axis=1).min()))
+                    d = np.linalg.norm(xe[:, a] - xe[:, b], axis=1)
+                    d = d[d > 0.0]
+                    if d.size:
+                        out = min(out, float(d.min()))
         return out
 
     def inverted(self) -> bool:
@@ -273,7 +277,7 @@ def solve(problem, first: float = 0.1, min_increment: float = 1e-4, max_iteratio
     while lam < 1.0 and dlam >= min_increment:
         target = min(1.0, lam + dlam)
         xt, ok, its, mu = x.copy(), False, 0, 0.0
-        if moving:
+        if moving and x0 is None:  # (a start x0 is an answer at full load: its held dofs stay where they are)
             # secant predictor: the free dofs continue the last converged increment's motion, the held dofs go to
             # their share of the prescribed displacement (without it the first iterate crushes the elements next
             # to the moved nodes)
@@ -327,8 +331,9 @@ def solve(problem, first: float = 0.1, min_increment: float = 1e-4, max_iteratio
             if np.abs(du).max() < rtol * scale:
                 fi = sp_.f_int(xt).ravel()
                 rn = fi[sp_.free] - target * fe
-                # the load's scale: the applied loads, or under prescribed displacements the reactions they need
-                ref = max(target * load_norm, float(np.linalg.norm(fi[sp_.held])) if moving else 0.0)
+                # the load's scale: the applied loads, or under prescribed displacements the reactions of the moved
+                # dofs (not of the merely held ones, whose reactions do no work)
+                ref = max(target * load_norm, float(np.linalg.norm(fi[sp_.held][u_held != 0.0])) if moving else 0.0)
                 rel = float(np.linalg.norm(rn) / ref)
                 ok = rel < ftol and not sp_.inverted()
                 break

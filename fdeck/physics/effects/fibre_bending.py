@@ -29,7 +29,10 @@ Kinematics (per section, in the reference fibre frame f1 warp, f2 weft, f3 thick
 * In-plane bending (``in_plane`` laws, optional): hinges between the same neighbours whose curvature is the
   rotation of the fibre about the section normal,
       chi = asin(s) / L - chi_0,   s = nbar . (u_l x u_r),
-  exact for an arc in the fabric's plane, positive when the fibre turns counter-clockwise about nbar. A jump of
+  exact for an arc in the fabric's plane, positive when the fibre turns counter-clockwise about nbar. Valid for a
+  kink below 90 deg per hinge: asin's slope grows without bound there and beyond it the measured angle falls again
+  (atan2 of the sine and the cosine u_l . u_r would hold to 180 deg; not done, the bands measured are 20-46 deg
+  spread over several hinges). A jump of
   shear angle across a fibre line kinks the other family's fibres in the plane, so this energy gives such jumps
   (and the element-scale shear bands of forming) a width set by the ratio of the in-plane bending rigidity to the
   shear stiffness: the second-gradient energy of Ferretti et al. 2014 and Barbagallo et al. 2017, discretised
