@@ -109,10 +109,16 @@ class StaticProblem:
     def potential(self, x: np.ndarray, lam: float) -> float:
         """Pi(x) = stored energy of the groups and internal effects at x - lam f_ext . (x - X) [mJ]."""
         self.f_int(x)
-        stored = 0.0
+        return sum(self.stored().values()) - lam * float(np.sum(self.f_ext * (x - self.X)))
+
+    def stored(self) -> dict[str, float]:
+        """Stored energy [mJ] of the groups and internal effects at the last ``f_int``, by ledger term name."""
+        out: dict[str, float] = {}
         for src in list(self.problem.groups) + self.internal:
-            stored += sum(v for t, v in zip(src.terms, src.term_values()) if t.kind == STORED)
-        return stored - lam * float(np.sum(self.f_ext * (x - self.X)))
+            for t, v in zip(src.terms, src.term_values()):
+                if t.kind == STORED:
+                    out[t.name] = out.get(t.name, 0.0) + float(v)
+        return out
 
     def smallest_edge(self) -> float:
         """Smallest nonzero distance [mm] between two nodes of one element in the reference configuration (an

@@ -111,11 +111,7 @@ def final_values(problem, x: np.ndarray) -> dict:
 
     sp_ = static.StaticProblem(problem)
     f = sp_.f_int(x)  # also leaves every group and effect evaluated at x for the terms below
-    out: dict[str, float] = {}
-    for src in list(problem.groups) + sp_.internal:
-        for term, v in zip(src.terms, src.term_values()):
-            if term.kind == static.STORED:
-                out[term.name] = out.get(term.name, 0.0) + float(v)
+    out = sp_.stored()
     out["internal_energy"] = float(sum(out.values()))
     r = f - sp_.f_ext
     for name, nodes in problem.reactions.items():
