@@ -80,3 +80,35 @@ def test_negative_eigenvalues_count_the_euler_modes_a_straight_column_has_passed
     for strain, expected in ((0.9 * e1, 0), (1.1 * e1, 1), (0.9 * e2, 1), (1.1 * e2, 2)):
         problem, x, *_ = _column(strain)
         assert static.negative_eigenvalues(problem, x) == expected, strain / e1
+
+
+def test_a_static_run_that_stops_reports_the_stability_of_its_last_equilibrium(tmp_path, monkeypatch):
+    """Requirement: a static study run that stops short of full load, with ``stability`` asked for, reports the
+    load factor it reached and the negative eigenvalues of the tangent at its last equilibrium (what tells a lost
+    stable path from a solver that did not find the next equilibrium), and saves that state. The stop is made
+    here by wrapping the solver (it returns its own answer marked as not converged at load factor 0.9), on the
+    clamped-clamped column held straight at 1.1 times its first Euler strain, so the count is known: 1 (the
+    previous test's margin; the count 0 below the first load is that test's)."""
+    L, h, E, G = 40.0, 1.0, 1000.0, 500.0
+    EI, A = E * h ** 4 / 12.0, h * h
+    P = 4.0 * math.pi ** 2 * EI / L ** 2
+    e1 = P / (1.0 + P / (5.0 / 6.0 * G * A)) / (E * A)
+    real = static.solve
+
+    def stopped(*args, **kw):
+        res = real(*args, **kw)
+        res.converged, res.load_factor = False, 0.9
+        return res
+
+    monkeypatch.setattr(static, "solve", stopped)
+    for factor, expected in ((1.1, 1),):
+        data = strip(L, h, 40, 4, E, G, [{"type": "displacement", "nodes": "tip", "dofs": ["x"],
+                                          "value": -factor * e1 * L},
+                                         {"type": "fixed", "nodes": "tip", "dofs": ["z"]}])
+        out = tmp_path / f"run{factor}"
+        summary = run_static(data, DECKS, out, {"max_iterations": 20, "stability": True})
+        assert summary["status"] == "failed" and summary["load_factor_reached"] == 0.9
+        assert summary["negative_eigenvalues_at_stop"] == expected, factor
+        x = np.load(out / "stop_positions.npy")
+        # the straight column's state was saved: every node still on its layer z = 0, h/4, ..., h
+        assert x.shape[1] == 3 and np.abs(x[:, 2] * 4.0 / h - np.round(x[:, 2] * 4.0 / h)).max() < 1e-9

@@ -74,7 +74,8 @@ class StaticSolve(Card):
     max_iterations: int = Field(20, ge=1, description="Newton iterations per load increment before it is halved.")
     stability: bool = Field(False, description="Also count the negative eigenvalues of the tangent stiffness at "
                             "the answer (summary `negative_eigenvalues`: 0 at a stable equilibrium; one sparse "
-                            "factorisation more).")
+                            "factorisation more), or at the last equilibrium of a solve that stops short of full "
+                            "load (`negative_eigenvalues_at_stop`, `load_factor_reached`, stop_positions.npy).")
 
 
 class Solver(Card):

@@ -8,8 +8,8 @@ What it does: compiles the resolved deck, solves f_int(x) = f_ext under the load
 end of the last step (load-stepped Newton), optionally first along a continuation in one deck parameter (e.g. the
 fibre compression ratio 1 -> 0.3 -> ... -> the deck's own value, ``static.continuation``), then evaluates the deck's
 measures at the equilibrium (velocities zero) and writes ``summary.json`` in the shape the studies read (``status``,
-``measures``, ``wall_time``) plus the solver's cost (``force_calls``, ``newton_iterations``, ``increments``) and the
-final positions (``final_positions.npy``, (n_node, 3) [mm]). A run that does not converge is ``failed`` with the load
+``measures``, ``wall_time``) plus the solver's cost (``force_calls``, ``newton_iterations``, ``tangents``,
+``krylov_products``, ``increments``) and the final positions (``final_positions.npy``, (n_node, 3) [mm]). A run that does not converge is ``failed`` with the load
 factor or continuation value it reached: a row with its status, as for a dynamic run.
 """
 
@@ -75,6 +75,7 @@ def _run_static(deck_data: dict, base_dir: Path, out_dir: Path, options: dict, s
         "status": "completed" if converged else "failed", "solver": "static",
         "force_calls": sum(a[2].force_calls for a in attempts),
         "newton_iterations": sum(a[2].iterations for a in attempts),
+        "tangents": sum(a[2].tangents for a in attempts), "krylov_products": sum(a[2].products for a in attempts),
         "increments": sum(a[2].increments for a in attempts), "seeded": x0 is not None,
         "residual": float(res.residual), "elements": int(problem.n_element),
     }
@@ -84,22 +85,34 @@ def _run_static(deck_data: dict, base_dir: Path, out_dir: Path, options: dict, s
                                for c, v in zip(m.columns, m.evaluate(res.x, zero))}
         summary["final"] = final_values(problem, res.x)
         if options.get("stability", False):
-            try:
-                summary["negative_eigenvalues"] = static.negative_eigenvalues(problem, res.x)
-            except (ValueError, RuntimeError) as exc:  # off-diagonal pivots or an exactly singular tangent: the
-                summary["negative_eigenvalues"] = None  # answer stands, its stability is not known
-                summary["stability_message"] = str(exc)
+            summary.update(_stability(static, problem, res.x))
         np.save(out_dir / POSITIONS, res.x)
     else:
         summary["message"] = (f"static solve stopped at load factor {res.load_factor:.3g}" if reached is None else
                               f"continuation in {cont['path']} stopped at {reached:.4g} (load factor "
                               f"{res.load_factor:.3g})")
+        if options.get("stability", False) and res.load_factor > 0.0:
+            # where the path ends: a negative eigenvalue at the last equilibrium says the path lost its stability
+            # (a bifurcation or limit point passed), none says the solver did not find the next equilibrium
+            summary["load_factor_reached"] = float(res.load_factor)
+            summary.update({k + "_at_stop": v for k, v in _stability(static, problem, res.x).items()})
+            np.save(out_dir / STOP_POSITIONS, res.x)
     summary["wall_time"] = time.perf_counter() - t0
     write_json_atomic(out_dir / "summary.json", summary)
     return summary
 
 
 POSITIONS = "final_positions.npy"
+STOP_POSITIONS = "stop_positions.npy"  # the last equilibrium of a solve that did not reach full load
+
+
+def _stability(static, problem, x: np.ndarray) -> dict:
+    """{"negative_eigenvalues": count} of the tangent at x, or None and the reason when the factorisation cannot
+    tell (off-diagonal pivots, an exactly singular tangent)."""
+    try:
+        return {"negative_eigenvalues": static.negative_eigenvalues(problem, x)}
+    except (ValueError, RuntimeError) as exc:
+        return {"negative_eigenvalues": None, "stability_message": str(exc)}
 
 
 def final_values(problem, x: np.ndarray) -> dict:
