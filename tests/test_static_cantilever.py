@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from fdeck.compile.problem import compile_deck
 from fdeck.deck.model import Deck
@@ -10,9 +11,10 @@ from fdeck.engine import static
 from helpers import DECKS
 
 
-def strip_deck(L, h, nx, nz, E, G, ratio=1.0, tip_force=None, bending=None, gravity=False):
+def strip_deck(L, h, nx, nz, E, G, ratio=1.0, tip_force=None, bending=None, gravity=False, ny=1):
     """A fabric_hyper strip (quadratic modes: fibre modulus E along x and y, compaction E, shear moduli G), clamped
-    at x = 0, y held, width h; a total tip force [N] along -z and/or gravity; optional fibre_bending add-on."""
+    at x = 0, y held, width h (ny elements across); a total tip force [N] along -z and/or gravity; optional
+    fibre_bending add-on."""
     q = lambda K: {"form": "quadratic", "K": K}  # noqa: E731
     mat = {"type": "fabric_hyper", "density": 1e-9, "compression_ratio": ratio, "warp": q(E / 2), "weft": q(E / 2),
            "compaction": q(E / 2), "in_plane_shear": q(G / 2), "transverse_shear_warp": q(G / 2),
@@ -25,7 +27,7 @@ def strip_deck(L, h, nx, nz, E, G, ratio=1.0, tip_force=None, bending=None, grav
         loads.append({"type": "nodal_force", "nodes": "tip", "force": [0, 0, -tip_force], "distribution": "total"})
     if gravity:
         loads.append({"type": "gravity", "acceleration": [0, 0, -9810]})
-    data = {"title": "static strip", "mesh": {"block": {"size": [L, h, h], "divisions": [nx, 1, nz]},
+    data = {"title": "static strip", "mesh": {"block": {"size": [L, h, h], "divisions": [nx, ny, nz]},
                                                "node_sets": {"tip": {"box": [[L, 0, 0], [L, h, h]]}}},
             "materials": {"m": mat}, "sections": [sec],
             "boundary": [{"type": "fixed", "nodes": "xmin"}, {"type": "fixed", "nodes": "all", "dofs": ["y"]}],
@@ -33,19 +35,25 @@ def strip_deck(L, h, nx, nz, E, G, ratio=1.0, tip_force=None, bending=None, grav
     return compile_deck(Deck.model_validate(data), DECKS)
 
 
-def test_coloured_tangent_equals_dense_with_fibre_bending():
+@pytest.mark.parametrize("in_plane", [False, True])
+def test_coloured_tangent_equals_dense_with_fibre_bending(in_plane):
     """Requirement: the coloured tangent (connectivity pattern, one pair of force calls per colour) equals the
-    column-by-column finite-difference tangent, fibre_bending's neighbour coupling included, and the connectivity
-    pattern holds every dependence that probing each dof alone finds. Tolerance 1e-9 of the largest entry: both use
-    the same central differences, so only the summation order of the forces differs (round-off)."""
-    problem = strip_deck(48.0, 1.0, 24, 2, 100.0, 10.0, ratio=0.1,
-                         bending={"warp": {"D1": 5.0}, "weft": {"D1": 5.0}, "thickness": 1.0}, gravity=True)
+    column-by-column finite-difference tangent, fibre_bending's neighbour coupling included (out of plane, and in
+    plane as well), and the connectivity pattern is exactly what probing each dof alone finds at a generic state:
+    every dependence (a missing one would be a wrong tangent) and nothing more (an extra one costs colours, i.e.
+    force calls). Tolerance 1e-9 of the largest entry: both use the same central differences, so only the
+    summation order of the forces differs (round-off)."""
+    bending = {"warp": {"D1": 5.0}, "weft": {"D1": 5.0}, "thickness": 1.0}
+    if in_plane:
+        bending["in_plane"] = {"warp": {"D1": 3.0}, "weft": {"D1": 3.0}}
+    problem = strip_deck(48.0, 4.0 if in_plane else 1.0, 24, 2, 100.0, 10.0, ratio=0.1, bending=bending,
+                         gravity=True, ny=3 if in_plane else 1)
     sp_ = static.StaticProblem(problem)
     rng = np.random.default_rng(3)
     x = problem.X + 0.02 * rng.standard_normal(problem.X.shape)  # a generic state: no symmetry hides a column
     S = sp_.dof_pattern(sp_.pattern())
     probed = sp_.probe_pattern(x)
-    assert (probed.toarray() & ~S.toarray()).sum() == 0
+    assert (probed.toarray() != S.toarray()).sum() == 0
     assert probed.nnz > (sp_.dof_pattern(_groups_only(sp_)).nnz)  # fibre_bending reaches beyond one element
     colours = static.StaticProblem.colour(S)
     assert colours.max() + 1 < len(sp_.free) / 2  # the colouring compresses
@@ -185,23 +193,3 @@ def test_ratio_continuation_equals_direct_solve():
     assert wc > 3.0 * w1  # the chain did move: 1 % compression is much softer than symmetric fibres
     assert abs(wc / wd - 1.0) < 1e-6, (wc, wd)
     assert np.abs(chain[-1][2].x - direct.x).max() < 1e-5 * wd
-
-
-def test_krylov_newton_reaches_the_fresh_tangent_answer_for_fewer_force_calls():
-    """Requirement: Newton-Krylov with a kept tangent as preconditioner (the default, ``krylov=40``) ends on the
-    equilibrium that Newton with a fresh finite-difference tangent every iteration (``krylov=0``) reaches, on the
-    bimodular strip whose fibre kinks are the hard case for a kept tangent: every node within 1e-6 of the tip
-    deflection (both stop when the correction is below 1e-8 of the displacement and the residual below 1e-4 of
-    the load, and this small-strain problem's equilibrium is unique, so the two answers differ by the solvers'
-    tolerances, not by 1e-6), for fewer force calls (measured 900 against 1 356: the check is that the kept
-    tangent pays at all, with a third of margin, not the ratio)."""
-    fresh_problem, _, _ = _bimodular_strip(0.01)
-    fresh = static.solve(fresh_problem, krylov=0)
-    problem, _, _ = _bimodular_strip(0.01)
-    kept = static.solve(problem)
-    assert fresh.converged and kept.converged and fresh.products == 0 and kept.products > 0
-    tip = problem.node_sets["tip"]
-    w = -(fresh.x[tip, 2] - problem.X[tip, 2]).mean()
-    assert np.abs(kept.x - fresh.x).max() < 1e-6 * w
-    assert kept.tangents < fresh.tangents and kept.force_calls < 0.9 * fresh.force_calls, (
-        kept.force_calls, fresh.force_calls)

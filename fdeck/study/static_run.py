@@ -8,8 +8,8 @@ What it does: compiles the resolved deck, solves f_int(x) = f_ext under the load
 end of the last step (load-stepped Newton), optionally first along a continuation in one deck parameter (e.g. the
 fibre compression ratio 1 -> 0.3 -> ... -> the deck's own value, ``static.continuation``), then evaluates the deck's
 measures at the equilibrium (velocities zero) and writes ``summary.json`` in the shape the studies read (``status``,
-``measures``, ``wall_time``) plus the solver's cost (``force_calls``, ``newton_iterations``, ``tangents``,
-``krylov_products``, ``increments``) and the final positions (``final_positions.npy``, (n_node, 3) [mm]). A run that does not converge is ``failed`` with the load
+``measures``, ``wall_time``) plus the solver's cost (``force_calls``, ``newton_iterations``, ``increments``) and the
+final positions (``final_positions.npy``, (n_node, 3) [mm]). A run that does not converge is ``failed`` with the load
 factor or continuation value it reached: a row with its status, as for a dynamic run.
 """
 
@@ -75,7 +75,6 @@ def _run_static(deck_data: dict, base_dir: Path, out_dir: Path, options: dict, s
         "status": "completed" if converged else "failed", "solver": "static",
         "force_calls": sum(a[2].force_calls for a in attempts),
         "newton_iterations": sum(a[2].iterations for a in attempts),
-        "tangents": sum(a[2].tangents for a in attempts), "krylov_products": sum(a[2].products for a in attempts),
         "increments": sum(a[2].increments for a in attempts), "seeded": x0 is not None,
         "residual": float(res.residual), "elements": int(problem.n_element),
     }

@@ -484,6 +484,12 @@ class FibreBendingEffect(Effect):
         self.group_index = None  # index of ``group`` in the problem's groups (set by ``build``; None for a view)
         self._beta = None  # (n_el,) selective mass factors of the current step, or None
 
+    def coupled_elements(self) -> tuple[np.ndarray, np.ndarray]:
+        """(left, right) (n_h,) element indices of each hinge: a hinge's forces depend on the nodes of its two
+        elements only (each element's tangents come from its own nodes), which is the coupling a static solver's
+        tangent pattern needs (``fdeck.engine.static``)."""
+        return self.left, self.right
+
     def _evaluate(self, x):
         tangents(x, self.conn, self.G, self.t, self.nrm, self.cn)
         hinges(self.t, self.nrm, self.cn, self.left, self.right, self.fam, self.mode, self.L, self.V, self.chi0,
