@@ -11,10 +11,12 @@ from fdeck.engine import static
 from helpers import DECKS
 
 
-def strip_deck(L, h, nx, nz, E, G, ratio=1.0, tip_force=None, bending=None, gravity=False, ny=1):
-    """A fabric_hyper strip (quadratic modes: fibre modulus E along x and y, compaction E, shear moduli G), clamped
-    at x = 0, y held, width h (ny elements across); a total tip force [N] along -z and/or gravity; optional
-    fibre_bending add-on."""
+def strip_data(L, h, nx, nz, E, G, ratio=1.0, tip_force=None, bending=None, gravity=False, ny=1, boundary=(),
+               reactions=()):
+    """A fabric_hyper strip (quadratic modes: fibre modulus E along x and y, compaction E, shear moduli G; `ans`
+    hexahedra), clamped at x = 0, y held, width h (ny elements across), node set `tip` at x = L; a total tip force
+    [N] along -z and/or gravity; optional fibre_bending add-on; extra boundary cards; reactions of named sets
+    reported: plain deck data."""
     q = lambda K: {"form": "quadratic", "K": K}  # noqa: E731
     mat = {"type": "fabric_hyper", "density": 1e-9, "compression_ratio": ratio, "warp": q(E / 2), "weft": q(E / 2),
            "compaction": q(E / 2), "in_plane_shear": q(G / 2), "transverse_shear_warp": q(G / 2),
@@ -30,9 +32,17 @@ def strip_deck(L, h, nx, nz, E, G, ratio=1.0, tip_force=None, bending=None, grav
     data = {"title": "static strip", "mesh": {"block": {"size": [L, h, h], "divisions": [nx, ny, nz]},
                                                "node_sets": {"tip": {"box": [[L, 0, 0], [L, h, h]]}}},
             "materials": {"m": mat}, "sections": [sec],
-            "boundary": [{"type": "fixed", "nodes": "xmin"}, {"type": "fixed", "nodes": "all", "dofs": ["y"]}],
+            "boundary": [{"type": "fixed", "nodes": "xmin"}, {"type": "fixed", "nodes": "all", "dofs": ["y"]},
+                         *boundary],
             "loads": loads, "steps": [{"name": "s", "duration": 1e-3}]}
-    return compile_deck(Deck.model_validate(data), DECKS)
+    if reactions:
+        data["output"] = {"reactions": list(reactions)}
+    return data
+
+
+def strip_deck(*args, **kw):
+    """The compiled problem of ``strip_data``."""
+    return compile_deck(Deck.model_validate(strip_data(*args, **kw)), DECKS)
 
 
 @pytest.mark.parametrize("in_plane", [False, True])

@@ -12,20 +12,13 @@ from fdeck.deck.model import Deck
 from fdeck.engine import static
 from fdeck.study.static_run import run_static
 from helpers import DECKS
+from test_static_cantilever import strip_data
 
 
 def strip(L, h, nx, nz, E, G, boundary):
-    """A symmetric quadratic fabric_hyper strip (fibre modulus E along x, shear moduli G, `ans` hexahedra, width h,
-    y held everywhere, clamped at x = 0) with the extra boundary cards given (node set `tip` at x = L): plain data."""
-    q = lambda K: {"form": "quadratic", "K": K}  # noqa: E731
-    mat = {"type": "fabric_hyper", "density": 1e-9, "compression_ratio": 1.0, "warp": q(E / 2), "weft": q(E / 2), "compaction": q(E / 2),
-           "in_plane_shear": q(G / 2), "transverse_shear_warp": q(G / 2), "transverse_shear_weft": q(G / 2)}
-    return {"title": "strip", "mesh": {"block": {"size": [L, h, h], "divisions": [nx, 1, nz]},
-                                       "node_sets": {"tip": {"box": [[L, 0, 0], [L, h, h]]}}},
-            "materials": {"m": mat}, "sections": [{"elements": "all", "material": "m", "formulation": "ans"}],
-            "boundary": [{"type": "fixed", "nodes": "xmin"}, {"type": "fixed", "nodes": "all", "dofs": ["y"]},
-                         *boundary],
-            "steps": [{"name": "s", "duration": 1e-3}], "output": {"reactions": ["tip"]}}
+    """The symmetric static strip of test_static_cantilever (clamped at x = 0, y held) with the extra boundary
+    cards given, its tip's reactions reported: plain data."""
+    return strip_data(L, h, nx, nz, E, G, boundary=boundary, reactions=["tip"])
 
 
 def test_cantilever_pushed_by_a_prescribed_tip_displacement_against_timoshenko(tmp_path):
