@@ -52,6 +52,8 @@ class StaticResult:
     wall: float  # [s]
     history: list = field(default_factory=list)  # (lambda, iterations) per converged increment
     residual: float = float("nan")  # |f_int - lambda f_ext| / |lambda f_ext| on the free dofs at the answer
+    switches: int = 0  # branch switches made (``stable``)
+    unstable: int = -1  # negative eigenvalues at the answer (``stable``; -1: not checked)
 
 
 class StaticProblem:
@@ -247,7 +249,7 @@ class StaticProblem:
 
 
 def solve(problem, first: float = 0.1, min_increment: float = 1e-4, max_iterations: int = 30, rtol: float = 1e-8,
-          ftol: float = 1e-4, h: float | None = None, x0: np.ndarray | None = None,
+          ftol: float = 1e-4, h: float | None = None, x0: np.ndarray | None = None, stable: bool = False,
           verbose: bool = False) -> StaticResult:
     """Static equilibrium of ``problem`` (a compiled ``Problem``) under its loads at the end of its last step.
 
@@ -265,6 +267,18 @@ def solve(problem, first: float = 0.1, min_increment: float = 1e-4, max_iteratio
     between iterations by the forces themselves, and the iteration stops when they no longer change. A step of
     1e-7 of the size (the former default) straddles the kink wherever |strain| < ~3e-5, i.e. near every neutral
     axis and everywhere at small loads: Newton then uses a tangent halfway between the branches and cycles.
+
+    Stable branch (``stable``). Newton continuation follows the branch it is on through a bifurcation, stable or
+    not: a perfect column pushed past Euler's load stays straight, and the three-point-bending strip on 1 mm
+    elements reached an equilibrium with three negative eigenvalues or a stable one depending on round-off (the
+    order of the tangent's colours). With ``stable`` every converged increment's tangent is checked (``inertia``);
+    where it has negative eigenvalues the equilibrium is perturbed along the most unstable mode (``unstable_mode``,
+    largest entry a quarter of the smallest element edge, both signs tried) and Newton, which descends the
+    potential, re-solved at the same load: the branch switch of numerical continuation (E. Riks, An incremental
+    approach to the solution of snapping and buckling problems, Int. J. Solids Struct. 15, 1979; W. Wagner,
+    P. Wriggers, A simple method for the calculation of postcritical branches, Eng. Comput. 5, 1988). The
+    perturbed answer with fewer negative eigenvalues (then the lower potential) is kept, up to three switches per
+    increment. ``StaticResult.switches`` counts them, ``unstable`` is the count left at the answer.
     """
     t0 = time.perf_counter()
     sp_ = StaticProblem(problem)
@@ -274,7 +288,6 @@ def solve(problem, first: float = 0.1, min_increment: float = 1e-4, max_iteratio
     S = sp_.dof_pattern(sp_.pattern())
     colours = StaticProblem.colour(S)
     fe = sp_.f_ext.ravel()[sp_.free]
-    load_norm = max(np.linalg.norm(fe), 1e-300)
     X_held = X.ravel()[sp_.held]
     u_held = sp_.x_held - X_held  # prescribed displacements at full load, applied in proportion to lambda
     moving = bool(np.any(u_held != 0.0))
@@ -290,9 +303,10 @@ def solve(problem, first: float = 0.1, min_increment: float = 1e-4, max_iteratio
     increments = iterations = 0
     history, rel = [], float("nan")
     x_prev, lam_prev = None, 0.0
+    switches, unstable = 0, -1
     while lam < 1.0 and dlam >= min_increment:
         target = min(1.0, lam + dlam)
-        xt, ok, its, mu = x.copy(), False, 0, 0.0
+        xt = x.copy()
         if moving and x0 is None:  # (a start x0 is an answer at full load: its held dofs stay where they are)
             # secant predictor: the free dofs continue the last converged increment's motion, the held dofs go to
             # their share of the prescribed displacement (without it the first iterate crushes the elements next
@@ -300,60 +314,16 @@ def solve(problem, first: float = 0.1, min_increment: float = 1e-4, max_iteratio
             if x_prev is not None:
                 xt += (target - lam) / (lam - lam_prev) * (x - x_prev)
             xt.ravel()[sp_.held] = X_held + target * u_held
-        for its in range(1, max_iterations + 1):
-            f = sp_.f_int(xt)
-            r = f.ravel()[sp_.free] - target * fe
-            if not np.all(np.isfinite(r)) or sp_.inverted():
-                break
-            K = sp_.tangent(xt, S, colours, h)
-            # damped, shifted Newton on the potential Pi = stored - lambda f_ext . u (gradient r): solve
-            # (K + mu D) du = -r, D = diag |K|, with mu raised when the step has to be cut back and lowered when the
-            # full step passes Armijo's test (a Levenberg-Marquardt shift: far from equilibrium the tangent of a
-            # nearly straight strip is a poor model of the state it leads to). Near convergence Pi's round-off
-            # hides the decrease, so there a step that lowers |r| is accepted as well.
-            D = sp.diags(np.abs(K.diagonal()) + 1e-300)
-            try:
-                du = spl.spsolve((K + mu * D).tocsc(), -r) if mu > 0 else spl.spsolve(K, -r)
-            except RuntimeError:
-                break
-            if not np.all(np.isfinite(du)):
-                break
-            pi0, slope, rn0 = sp_.potential(xt, target), float(r @ du), np.linalg.norm(r)
-            if not slope < 0.0:  # not a descent direction: steepest descent, scaled to Newton's length
-                du = -r * (np.linalg.norm(du) / rn0)
-                slope = float(r @ du)
-                mu = max(10.0 * mu, 1e-3)
-            step = 1.0
-            for _ in range(12):
-                trial = xt.copy()
-                trial.ravel()[sp_.free] += step * du
-                pit = sp_.potential(trial, target)
-                if np.isfinite(pit) and not sp_.inverted():
-                    if pit <= pi0 + 1e-4 * step * slope:
-                        break
-                    if abs(slope) < 1e-10 * abs(pi0) and np.linalg.norm(
-                            sp_.f_int(trial).ravel()[sp_.free] - target * fe) < rn0:
-                        break
-                step *= 0.5
-            mu = mu * 0.25 if step == 1.0 else max(10.0 * mu, 1e-3)
-            if mu < 1e-8:
-                mu = 0.0
-            xt = trial
-            du = step * du
-            if verbose:
-                print(f"  lambda {target:.4g} it {its} |r| {rn0:.3e} step {step:g} mu {mu:.1e} "
-                      f"|du| {np.abs(du).max():.3e}")
-            scale = max(np.abs(xt - X).max(), size * 1e-6)
-            if np.abs(du).max() < rtol * scale:
-                fi = sp_.f_int(xt).ravel()
-                rn = fi[sp_.free] - target * fe
-                # the load's scale: the applied loads, or under prescribed displacements the reactions of the moved
-                # dofs (not of the merely held ones, whose reactions do no work)
-                ref = max(target * load_norm, float(np.linalg.norm(fi[sp_.held][u_held != 0.0])) if moving else 0.0)
-                rel = float(np.linalg.norm(rn) / ref)
-                ok = rel < ftol and not sp_.inverted()
-                break
+        xt, ok, its, rel = _newton(sp_, xt, target, fe, S, colours, h, max_iterations, rtol, ftol, verbose)
         iterations += its
+        if ok and stable:
+            xt, n_neg, n_sw = _stable_branch(sp_, xt, target, fe, S, colours, h, max_iterations, rtol, ftol)
+            switches += n_sw
+            unstable = n_neg
+            if n_sw:
+                x = xt  # no secant predictor across a branch switch: the next increment starts from the new branch
+            if verbose:
+                print(f"  lambda {target:.4g}: {n_neg} negative eigenvalues after {n_sw} branch switches")
         if ok:
             x_prev, lam_prev = x, lam
             x, lam = xt, target
@@ -363,7 +333,100 @@ def solve(problem, first: float = 0.1, min_increment: float = 1e-4, max_iteratio
         else:
             dlam *= 0.5
     return StaticResult(x, lam >= 1.0, lam, increments, iterations, sp_.calls, int(colours.max() + 1),
-                        time.perf_counter() - t0, history, rel)
+                        time.perf_counter() - t0, history, rel, switches, unstable)
+
+
+def _newton(sp_: StaticProblem, xt: np.ndarray, target: float, fe: np.ndarray, S, colours, h: float,
+            max_iterations: int, rtol: float, ftol: float, verbose: bool = False) -> tuple[np.ndarray, bool, int, float]:
+    """Equilibrium at load factor ``target`` from the start xt (n_node, 3) [mm], its held dofs where they are: the
+    damped, shifted Newton iteration of ``solve``. Returns (x, converged, iterations, relative residual)."""
+    X = sp_.X
+    size = float(np.ptp(X, axis=0).max())
+    load_norm = max(np.linalg.norm(fe), 1e-300)
+    moved = sp_.x_held - X.ravel()[sp_.held] != 0.0  # the held dofs that the deck moves
+    moving = bool(moved.any())
+    ok, its, mu, rel = False, 0, 0.0, float("nan")
+    for its in range(1, max_iterations + 1):
+        f = sp_.f_int(xt)
+        r = f.ravel()[sp_.free] - target * fe
+        if not np.all(np.isfinite(r)) or sp_.inverted():
+            break
+        K = sp_.tangent(xt, S, colours, h)
+        # damped, shifted Newton on the potential Pi = stored - lambda f_ext . u (gradient r): solve
+        # (K + mu D) du = -r, D = diag |K|, with mu raised when the step has to be cut back and lowered when the
+        # full step passes Armijo's test (a Levenberg-Marquardt shift: far from equilibrium the tangent of a
+        # nearly straight strip is a poor model of the state it leads to). Near convergence Pi's round-off
+        # hides the decrease, so there a step that lowers |r| is accepted as well.
+        D = sp.diags(np.abs(K.diagonal()) + 1e-300)
+        try:
+            du = spl.spsolve((K + mu * D).tocsc(), -r) if mu > 0 else spl.spsolve(K, -r)
+        except RuntimeError:
+            break
+        if not np.all(np.isfinite(du)):
+            break
+        pi0, slope, rn0 = sp_.potential(xt, target), float(r @ du), np.linalg.norm(r)
+        if not slope < 0.0:  # not a descent direction: steepest descent, scaled to Newton's length
+            du = -r * (np.linalg.norm(du) / rn0)
+            slope = float(r @ du)
+            mu = max(10.0 * mu, 1e-3)
+        step = 1.0
+        for _ in range(12):
+            trial = xt.copy()
+            trial.ravel()[sp_.free] += step * du
+            pit = sp_.potential(trial, target)
+            if np.isfinite(pit) and not sp_.inverted():
+                if pit <= pi0 + 1e-4 * step * slope:
+                    break
+                if abs(slope) < 1e-10 * abs(pi0) and np.linalg.norm(
+                        sp_.f_int(trial).ravel()[sp_.free] - target * fe) < rn0:
+                    break
+            step *= 0.5
+        mu = mu * 0.25 if step == 1.0 else max(10.0 * mu, 1e-3)
+        if mu < 1e-8:
+            mu = 0.0
+        xt = trial
+        du = step * du
+        if verbose:
+            print(f"  lambda {target:.4g} it {its} |r| {rn0:.3e} step {step:g} mu {mu:.1e} "
+                  f"|du| {np.abs(du).max():.3e}")
+        scale = max(np.abs(xt - X).max(), size * 1e-6)
+        if np.abs(du).max() < rtol * scale:
+            fi = sp_.f_int(xt).ravel()
+            rn = fi[sp_.free] - target * fe
+            # the load's scale: the applied loads, or under prescribed displacements the reactions of the moved
+            # dofs (not of the merely held ones, whose reactions do no work)
+            ref = max(target * load_norm, float(np.linalg.norm(fi[sp_.held][moved])) if moving else 0.0)
+            rel = float(np.linalg.norm(rn) / ref)
+            ok = rel < ftol and not sp_.inverted()
+            break
+    return xt, ok, its, rel
+
+
+def _stable_branch(sp_: StaticProblem, x: np.ndarray, lam: float, fe: np.ndarray, S, colours, h: float,
+                   max_iterations: int, rtol: float, ftol: float) -> tuple[np.ndarray, int, int]:
+    """(x, negative eigenvalues at x, switches made) after at most three branch switches from the equilibrium x at
+    load factor lam (see ``solve``, ``stable``)."""
+    K = sp_.tangent(x, S, colours, h)
+    n_neg, switches = inertia(K), 0
+    while n_neg > 0 and switches < 3:
+        mode = unstable_mode(K, n_neg)
+        amplitude = 0.25 * sp_.smallest_edge()
+        best = None
+        for sign in (1.0, -1.0):
+            trial = x.copy()
+            trial.ravel()[sp_.free] += sign * amplitude * mode
+            y, ok, _, _ = _newton(sp_, trial, lam, fe, S, colours, h, max_iterations, rtol, ftol)
+            if not ok:
+                continue
+            Ky = sp_.tangent(y, S, colours, h)
+            key = (inertia(Ky), sp_.potential(y, lam))
+            if best is None or key < best[0]:
+                best = (key, y, Ky)
+        if best is None or best[0][0] >= n_neg and best[0][1] >= sp_.potential(x, lam):
+            break  # no switch leads anywhere better: keep the branch (its count is reported)
+        (n_neg, _), x, K = best
+        switches += 1
+    return x, n_neg, switches
 
 
 def continuation(make, params, x0: np.ndarray | None = None, max_inserts: int = 6, **kw) -> list:
@@ -396,18 +459,37 @@ def continuation(make, params, x0: np.ndarray | None = None, max_inserts: int = 
 
 def negative_eigenvalues(problem, x: np.ndarray, h: float | None = None) -> int:
     """Number of negative eigenvalues of the tangent stiffness d f_int / dx on the free dofs at x (n_node, 3) [mm]:
-    0 at a stable equilibrium of a displacement-driven or dead-loaded problem.
+    0 at a stable equilibrium of a displacement-driven or dead-loaded problem (``inertia``; K is the
+    finite-difference tangent, symmetrised)."""
+    sp_ = StaticProblem(problem)
+    size = float(np.ptp(sp_.X, axis=0).max())
+    S = sp_.dof_pattern(sp_.pattern())
+    return inertia(sp_.tangent(x, S, StaticProblem.colour(S), 1e-11 * size if h is None else h))
+
+
+def inertia(K: sp.spmatrix) -> int:
+    """Number of negative eigenvalues of the symmetric part of K (n, n).
 
     Sylvester's law of inertia: a symmetric K = P^T L D L^T P has as many negative eigenvalues as D has negative
     entries. The LDL^T comes from SuperLU with pivots kept on the diagonal in a symmetric ordering (``SymmetricMode``,
     no threshold pivoting), so U's diagonal is D; the count is refused (ValueError) if SuperLU permuted rows and
-    columns differently anyway. K is the finite-difference tangent, symmetrised."""
-    sp_ = StaticProblem(problem)
-    size = float(np.ptp(sp_.X, axis=0).max())
-    S = sp_.dof_pattern(sp_.pattern())
-    K = sp_.tangent(x, S, StaticProblem.colour(S), 1e-11 * size if h is None else h)
+    columns differently anyway."""
     K = (0.5 * (K + K.T)).tocsc()
     lu = spl.splu(K, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
     if not np.array_equal(lu.perm_r, lu.perm_c):
         raise ValueError("negative_eigenvalues: the factorisation pivoted off the diagonal; inertia not available")
     return int(np.sum(lu.U.diagonal() < 0.0))
+
+
+def unstable_mode(K: sp.spmatrix, count: int) -> np.ndarray:
+    """(n,) eigenvector (largest entry 1) of the most negative eigenvalue of the symmetric part of K, ``count``
+    (>= 1) of whose eigenvalues are negative: Lanczos in shift-invert mode about zero (eigsh), asking for the
+    count + 2 eigenvalues nearest zero, among which the negative ones of a tangent near a bifurcation are."""
+    K = (0.5 * (K + K.T)).tocsc()
+    k = min(count + 2, K.shape[0] - 2)
+    vals, vecs = spl.eigsh(K, k=k, sigma=0.0, which="LM")  # the eigenvalues nearest zero, the negative ones among them
+    j = int(np.argmin(vals))
+    if not vals[j] < 0.0:
+        raise ValueError("unstable_mode: no negative eigenvalue near zero")
+    v = vecs[:, j]
+    return v / np.abs(v).max()

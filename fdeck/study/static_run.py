@@ -8,8 +8,8 @@ What it does: compiles the resolved deck, solves f_int(x) = f_ext under the load
 end of the last step (load-stepped Newton), optionally first along a continuation in one deck parameter (e.g. the
 fibre compression ratio 1 -> 0.3 -> ... -> the deck's own value, ``static.continuation``), then evaluates the deck's
 measures at the equilibrium (velocities zero) and writes ``summary.json`` in the shape the studies read (``status``,
-``measures``, ``wall_time``) plus the solver's cost (``force_calls``, ``newton_iterations``, ``increments``) and the
-final positions (``final_positions.npy``, (n_node, 3) [mm]). A run that does not converge is ``failed`` with the load
+``measures``, ``wall_time``) plus the solver's cost (``force_calls``, ``newton_iterations``, ``increments``,
+``branch_switches``) and the final positions (``final_positions.npy``, (n_node, 3) [mm]). A run that does not converge is ``failed`` with the load
 factor or continuation value it reached: a row with its status, as for a dynamic run.
 """
 
@@ -52,7 +52,7 @@ def _run_static(deck_data: dict, base_dir: Path, out_dir: Path, options: dict, s
         data = deck_data if value is None else resolve(deck_data, {cont["path"]: value})
         return compile_deck(Deck.model_validate(data), base_dir)
 
-    kw = {"max_iterations": options.get("max_iterations", 20)}
+    kw = {"max_iterations": options.get("max_iterations", 20), "stable": bool(options.get("follow_stable", False))}
     attempts, reached, converged = [], None, False
     problem = make(None)
     x0 = _seed_positions(seed)
@@ -76,6 +76,7 @@ def _run_static(deck_data: dict, base_dir: Path, out_dir: Path, options: dict, s
         "force_calls": sum(a[2].force_calls for a in attempts),
         "newton_iterations": sum(a[2].iterations for a in attempts),
         "increments": sum(a[2].increments for a in attempts), "seeded": x0 is not None,
+        "branch_switches": sum(a[2].switches for a in attempts),
         "residual": float(res.residual), "elements": int(problem.n_element),
     }
     if converged:
