@@ -6,6 +6,7 @@
     python studies/forming.py retable DECK RESULT_DIR OUT_DIR [--set PATH=VALUE...]  # end tables from the last frame
     python studies/forming.py mirror RESULT_DIR       # full model: how far each frame's shear is from mirror symmetry
     python studies/forming.py ellipticity RESULT_DIR FRAMES [--box B] [--preset 3weave]  # elements past the law's limit
+    python studies/forming.py rows PATH_NAME RESULT_DIR... [--until S]  # element-to-element alternation along a path
 
 `render` reads the last blank frame of a run's `.pvd` (the blank is part 0; tools are other parts), draws every
 element as the polygon of its nodes projected on the view plane (their 2-D convex hull), farthest first, so the
@@ -22,7 +23,10 @@ Exact for hyperelastic hexahedral blanks (their fields depend on the positions o
 degrees of freedom are refused (the frame does not hold their directors).
 `mirror` reads a full (not halved) model's hexahedral frames and prints, per frame, the largest and 95th-percentile
 |gamma(x, y) + gamma(x, -y)| over element pairs mirrored about y = 0 (the shear angle is odd under that mirror when
-the warp lies along x): zero for a mirror-symmetric answer. `ellipticity` evaluates the fabric law at each
+the warp lies along x): zero for a mirror-symmetric answer. `rows` reads an element-wise path (no ``window``) and prints, per run, the shear of each element column the path
+crosses in order and the rms and largest second difference gamma[i-1] - 2 gamma[i] + gamma[i+1] of those values up to arc
+length S (and beyond it): about h^2 gamma'' for a field that is smooth on the element scale h, as large as the
+jumps themselves where neighbouring element rows alternate. `ellipticity` evaluates the fabric law at each
 element's centre deformation gradient (from the frame's displacements; elements whose reference centroid has
 |x|, y < B) and counts those whose acoustic tensor has lost strong ellipticity (smallest eigenvalue over 48 unit
 directions, 36 in the fibre plane, below zero; tangent by central differences of the point kernel).
@@ -168,6 +172,26 @@ def paths(name: str, result_dirs, png, labels=None) -> list[float]:
     return out
 
 
+def element_rows(result_dir, name: str) -> tuple[np.ndarray, np.ndarray]:
+    """(arc length [mm] of the first sample in each element column, its shear angle [deg]) along the element-wise
+    path ``name``: one value per column of elements crossed, in path order. A column is a run of consecutive
+    samples with the same value (a through-thickness average is one value per column; the `element` column of the
+    table names the element at the sample's reference point, which on a layer interface alternates between the
+    layers)."""
+    data = np.genfromtxt(Path(result_dir) / f"path_{name}.csv", delimiter=",", names=True)
+    first = np.r_[True, data["shear_angle"][1:] != data["shear_angle"][:-1]]
+    return data["arc_length"][first], data["shear_angle"][first]
+
+
+def rows(name: str, result_dir, until: float = np.inf) -> tuple[float, float, float]:
+    """(rms, largest |second difference| of the per-element shear [deg] up to arc length ``until``, rms beyond)."""
+    s, g = element_rows(result_dir, name)
+    d2, mid = g[2:] - 2.0 * g[1:-1] + g[:-2], s[1:-1]
+    near, far = d2[mid <= until], d2[mid > until]
+    rms = lambda v: float(np.sqrt(np.mean(v ** 2))) if len(v) else float("nan")  # noqa: E731
+    return rms(near), float(np.abs(near).max()) if len(near) else float("nan"), rms(far)
+
+
 def retable(deck_path, result_dir, out_dir, sets: dict | None = None) -> list[str]:
     """Write DECK's end-of-run tables at the last frame of ``result_dir`` into ``out_dir``, after setting the deck
     paths ``sets`` ({path: value}); returns the file names."""
@@ -297,6 +321,10 @@ def main() -> None:
     el.add_argument("frames", help="frame indices, comma-separated (0 = the initial frame)")
     el.add_argument("--box", type=float, help="only elements with reference |x|, y below this [mm]")
     el.add_argument("--preset", default="3weave")
+    ro = sub.add_parser("rows")
+    ro.add_argument("name", help="path name (output.paths[].name), element-wise (no window)")
+    ro.add_argument("result_dirs", nargs="+")
+    ro.add_argument("--until", type=float, default=np.inf, help="arc length [mm] splitting the two figures")
     a = ap.parse_args()
     if a.cmd == "render":
         print(render(a.result_dir, a.png, a.field, a.view, a.title))
@@ -312,6 +340,13 @@ def main() -> None:
 
         sets = dict((k, yaml.safe_load(v)) for k, v in (item.split("=", 1) for item in a.set))
         print(" ".join(retable(a.deck, a.result_dir, a.out_dir, sets)))
+    elif a.cmd == "rows":
+        for d in a.result_dirs:
+            s_, g = element_rows(d, a.name)
+            near, big, far = rows(a.name, d, a.until)
+            print(f"{d}: shear per element along {a.name} " + " ".join(f"{v:.1f}" for v in g))
+            print(f"  second difference up to {a.until:g} mm: rms {near:.1f} deg, largest {big:.1f} deg; "
+                  f"beyond: rms {far:.1f} deg")
     elif a.cmd == "force":
         force(a.paths[:-1], a.paths[-1], a.tool)
     else:

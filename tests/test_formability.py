@@ -459,3 +459,22 @@ def test_mirror_and_ellipticity_diagnostics_of_written_frames(tmp_path):
     sym = forming.mirror(tmp_path)
     assert sym[0][0] < 1e-9 and sym[1][0] == pytest.approx(2 * np.abs(even).max(), rel=1e-9)
     assert forming.ellipticity(tmp_path, [0, 2, 3]) == [(0, 16), (16, 16), (0, 16)]
+
+
+def test_row_alternation_measure_against_closed_forms(tmp_path):
+    """Requirement: ``studies/forming.py rows`` gives, for an element-wise path table (two samples per element
+    column, as the tetrahedron decks write), the second difference of the per-column shear: exactly 4 A for a
+    field alternating +-A from column to column, exactly 2 c h^2 for the quadratic c s^2 on columns of length h
+    (a second difference of a quadratic is exact), and splits the two at the arc length asked for. Exact
+    arithmetic on the written table: tolerance 1e-9."""
+    script = _forming_script()
+    h, A, c = 10.0, 7.0, 0.01
+    s = np.arange(0.0, 200.0, 5.0)  # two samples per 10 mm column
+    col = np.floor(s / h)
+    gamma = np.where(s < 100.0, 20.0 + A * (-1.0) ** col, c * (col * h) ** 2)
+    rows = "\n".join(f"{a},{e:d},{g:.17g}" for a, e, g in zip(s, (2 * col).astype(int), gamma))
+    (tmp_path / "path_p.csv").write_text("arc_length,element,shear_angle\n" + rows + "\n")
+    near_rms, near_max, far_rms = script.rows("p", tmp_path, until=80.0)
+    assert abs(near_rms - 4.0 * A) < 1e-9 and abs(near_max - 4.0 * A) < 1e-9
+    far = script.rows("p", tmp_path, until=110.0)[2]  # columns 12..18: the quadratic alone
+    assert abs(far - 2.0 * c * h ** 2) < 1e-9
