@@ -272,8 +272,8 @@ def solve(problem, first: float = 0.1, min_increment: float = 1e-4, max_iteratio
     not: a perfect column pushed past Euler's load stays straight, and the three-point-bending strip on 1 mm
     elements reached an equilibrium with three negative eigenvalues or a stable one depending on round-off (the
     order of the tangent's colours). With ``stable`` every converged increment's tangent is checked (``inertia``);
-    where it has negative eigenvalues the equilibrium is perturbed along the most unstable mode (``unstable_mode``,
-    largest entry a quarter of the smallest element edge, both signs tried) and Newton, which descends the
+    where it has negative eigenvalues the equilibrium is perturbed along a direction of negative curvature
+    (``negative_direction``, largest entry a quarter of the smallest element edge, both signs tried) and Newton, which descends the
     potential, re-solved at the same load: the branch switch of numerical continuation (E. Riks, An incremental
     approach to the solution of snapping and buckling problems, Int. J. Solids Struct. 15, 1979; W. Wagner,
     P. Wriggers, A simple method for the calculation of postcritical branches, Eng. Comput. 5, 1988). The
@@ -406,10 +406,9 @@ def _stable_branch(sp_: StaticProblem, x: np.ndarray, lam: float, fe: np.ndarray
                    max_iterations: int, rtol: float, ftol: float) -> tuple[np.ndarray, int, int]:
     """(x, negative eigenvalues at x, switches made) after at most three branch switches from the equilibrium x at
     load factor lam (see ``solve``, ``stable``)."""
-    K = sp_.tangent(x, S, colours, h)
-    n_neg, switches = inertia(K), 0
+    n_neg, mode = negative_direction(sp_.tangent(x, S, colours, h))
+    switches = 0
     while n_neg > 0 and switches < 3:
-        mode = unstable_mode(K, n_neg)
         amplitude = 0.25 * sp_.smallest_edge()
         best = None
         for sign in (1.0, -1.0):
@@ -418,13 +417,13 @@ def _stable_branch(sp_: StaticProblem, x: np.ndarray, lam: float, fe: np.ndarray
             y, ok, _, _ = _newton(sp_, trial, lam, fe, S, colours, h, max_iterations, rtol, ftol)
             if not ok:
                 continue
-            Ky = sp_.tangent(y, S, colours, h)
-            key = (inertia(Ky), sp_.potential(y, lam))
+            n, v = negative_direction(sp_.tangent(y, S, colours, h))
+            key = (n, sp_.potential(y, lam))
             if best is None or key < best[0]:
-                best = (key, y, Ky)
+                best = (key, y, v)
         if best is None or best[0][0] >= n_neg and best[0][1] >= sp_.potential(x, lam):
             break  # no switch leads anywhere better: keep the branch (its count is reported)
-        (n_neg, _), x, K = best
+        (n_neg, _), x, mode = best
         switches += 1
     return x, n_neg, switches
 
@@ -468,28 +467,36 @@ def negative_eigenvalues(problem, x: np.ndarray, h: float | None = None) -> int:
 
 
 def inertia(K: sp.spmatrix) -> int:
-    """Number of negative eigenvalues of the symmetric part of K (n, n).
+    """Number of negative eigenvalues of the symmetric part of K (n, n) (``negative_direction``'s count)."""
+    return negative_direction(K)[0]
+
+
+def negative_direction(K: sp.spmatrix) -> tuple[int, np.ndarray | None]:
+    """(number of negative eigenvalues of the symmetric part of K (n, n), a direction v (n,) of negative curvature,
+    v^T K v < 0, largest entry 1; None when the count is 0).
 
     Sylvester's law of inertia: a symmetric K = P^T L D L^T P has as many negative eigenvalues as D has negative
     entries. The LDL^T comes from SuperLU with pivots kept on the diagonal in a symmetric ordering (``SymmetricMode``,
-    no threshold pivoting), so U's diagonal is D; the count is refused (ValueError) if SuperLU permuted rows and
-    columns differently anyway."""
+    no threshold pivoting), so U = D L^T and U's diagonal is D; the count is refused (ValueError) if SuperLU
+    permuted rows and columns differently anyway. The direction: v = P^T U^-1 e_i gives v^T K v = 1 / D_ii, so
+    the pivot i that is most negative relative to its row's diagonal entry of K yields a direction along which the
+    energy falls (a negative-curvature direction from the factors, as modified-Cholesky optimisers take; not the
+    eigenvector, which Lanczos about zero misses when small positive eigenvalues crowd it, as on the 1 mm bending
+    strip)."""
     K = (0.5 * (K + K.T)).tocsc()
     lu = spl.splu(K, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
     if not np.array_equal(lu.perm_r, lu.perm_c):
         raise ValueError("negative_eigenvalues: the factorisation pivoted off the diagonal; inertia not available")
-    return int(np.sum(lu.U.diagonal() < 0.0))
-
-
-def unstable_mode(K: sp.spmatrix, count: int) -> np.ndarray:
-    """(n,) eigenvector (largest entry 1) of the most negative eigenvalue of the symmetric part of K, ``count``
-    (>= 1) of whose eigenvalues are negative: Lanczos in shift-invert mode about zero (eigsh), asking for the
-    count + 2 eigenvalues nearest zero, among which the negative ones of a tangent near a bifurcation are."""
-    K = (0.5 * (K + K.T)).tocsc()
-    k = min(count + 2, K.shape[0] - 2)
-    vals, vecs = spl.eigsh(K, k=k, sigma=0.0, which="LM")  # the eigenvalues nearest zero, the negative ones among them
-    j = int(np.argmin(vals))
-    if not vals[j] < 0.0:
-        raise ValueError("unstable_mode: no negative eigenvalue near zero")
-    v = vecs[:, j]
-    return v / np.abs(v).max()
+    d = lu.U.diagonal()
+    count = int(np.sum(d < 0.0))
+    if count == 0:
+        return 0, None
+    p = lu.perm_c  # K[p][:, p] = L U
+    scale = np.abs(K.diagonal()[p]) + 1e-300
+    i = int(np.argmin(d / scale))
+    e = np.zeros(len(d))
+    e[i] = 1.0
+    z = spl.spsolve_triangular(lu.U.tocsr(), e, lower=False)
+    v = np.empty_like(z)
+    v[p] = z
+    return count, v / np.abs(v).max()
