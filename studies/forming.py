@@ -3,7 +3,7 @@
     python studies/forming.py render RESULT_DIR OUT.png [--field shear_angle] [--view top|side] [--title T]
     python studies/forming.py force RESULT_DIR... OUT.png [--tool punch]   # punch force against stroke
     python studies/forming.py paths PATH_NAME RESULT_DIR... OUT.png [--labels L...]  # shear along a path, runs compared
-    python studies/forming.py retable DECK RESULT_DIR OUT_DIR [--set PATH=VALUE...]  # end tables from the last frame
+    python studies/forming.py retable DECK RESULT_DIR OUT_DIR [--set PATH=VALUE...] [--frame K]  # end tables from a frame
     python studies/forming.py mirror RESULT_DIR       # full model: how far each frame's shear is from mirror symmetry
     python studies/forming.py ellipticity RESULT_DIR FRAMES [--box B] [--preset 3weave]  # elements past the law's limit
     python studies/forming.py rows PATH_NAME RESULT_DIR... [--until S]  # element-to-element alternation along a path
@@ -16,7 +16,8 @@ angle in degrees by default). `force` plots the history's `tool_<tool>_force_z` 
 and prints, for each run after the first, the largest difference from the first at the first run's sample points
 (linear interpolation in arc length; each run's angle is its elements' own, constant per element).
 `retable` writes the end-of-run tables (``output.paths``, ``fibres.csv``) of DECK as they would be at the end of
-the run in RESULT_DIR, from its last frame's displacements: for a path added or changed after an hours-long run;
+the run in RESULT_DIR, from its last frame's displacements (``--frame K``: from frame K instead, to compare runs
+at the same stroke): for a path added or changed after an hours-long run;
 ``--set`` changes the deck first (deck paths as in a study, values in YAML: ``--set mesh.block.divisions=[60,25,2]``
 for a study variant's mesh, ``--set output.paths.2.window=10`` for another window).
 Exact for hyperelastic hexahedral blanks (their fields depend on the positions only); shells with rotational
@@ -192,9 +193,9 @@ def rows(name: str, result_dir, until: float = np.inf) -> tuple[float, float, fl
     return rms(near), float(np.abs(near).max()) if len(near) else float("nan"), rms(far)
 
 
-def retable(deck_path, result_dir, out_dir, sets: dict | None = None) -> list[str]:
-    """Write DECK's end-of-run tables at the last frame of ``result_dir`` into ``out_dir``, after setting the deck
-    paths ``sets`` ({path: value}); returns the file names."""
+def retable(deck_path, result_dir, out_dir, sets: dict | None = None, frame: int = -1) -> list[str]:
+    """Write DECK's end-of-run tables at blank frame ``frame`` (default the last) of ``result_dir`` into
+    ``out_dir``, after setting the deck paths ``sets`` ({path: value}); returns the file names."""
     import meshio
 
     from fdeck.compile.problem import compile_deck
@@ -211,7 +212,7 @@ def retable(deck_path, result_dir, out_dir, sets: dict | None = None) -> list[st
     problem = compile_deck(Deck.model_validate(data), deck_path.parent)
     if problem.rotations is not None:
         raise SystemExit("retable: shells with rotations need their directors, which the frames do not hold")
-    u = meshio.read(last_blank_frame(Path(result_dir))).point_data["displacement"]
+    u = meshio.read(blank_frames(Path(result_dir))[frame]).point_data["displacement"]
     if u.shape != problem.X.shape:
         raise SystemExit(f"retable: the frame has {len(u)} nodes, the deck {len(problem.X)}: not this deck's run")
     x = problem.X + u
@@ -314,6 +315,7 @@ def main() -> None:
     t.add_argument("result_dir")
     t.add_argument("out_dir")
     t.add_argument("--set", nargs="+", default=[], metavar="PATH=VALUE", help="deck path = YAML value")
+    t.add_argument("--frame", type=int, default=-1, help="blank frame index (0 = the initial one; default the last)")
     mi = sub.add_parser("mirror")
     mi.add_argument("result_dir")
     el = sub.add_parser("ellipticity")
@@ -339,7 +341,7 @@ def main() -> None:
         import yaml
 
         sets = dict((k, yaml.safe_load(v)) for k, v in (item.split("=", 1) for item in a.set))
-        print(" ".join(retable(a.deck, a.result_dir, a.out_dir, sets)))
+        print(" ".join(retable(a.deck, a.result_dir, a.out_dir, sets, a.frame)))
     elif a.cmd == "rows":
         for d in a.result_dirs:
             s_, g = element_rows(d, a.name)

@@ -196,7 +196,8 @@ def test_path_window_is_the_window_mean_of_a_shear_varying_along_the_path(tmp_pa
 
 def test_retable_from_the_last_frame_gives_the_tables_the_run_wrote(tmp_path):
     """Requirement: ``studies/forming.py retable`` rebuilds a deck's end-of-run tables from a finished run's last
-    frame (for a path added after an hours-long run). A 3WEAVE strip stretched and sheared by its end nodes, run
+    frame (for a path added after an hours-long run), or from an earlier frame (``frame``: the first is the rest
+    state, zero shear to round-off). A 3WEAVE strip stretched and sheared by its end nodes, run
     with `fdeck run`'s engine: retable with the same deck gives the run's own path and fibre tables. Tolerance
     1e-9 (deg, mm): the frame stores the displacements in float64 (base64 binary VTU), so the only difference is
     the round-off of X + (x - X)."""
@@ -232,6 +233,9 @@ output:
             np.testing.assert_allclose(again[k], ran[k], rtol=0, atol=1e-9, err_msg=f"{table}: {k}")
     sheared = read_table(tmp_path / "run" / "path_mid.csv")["shear_angle"]
     assert np.abs(sheared).max() > 1.0  # the state compared is a deformed one, not the rest state
+    # an earlier frame (--frame): the initial one is the undeformed blank, shear zero along the path
+    _forming_script().retable(deck_path, tmp_path / "run", tmp_path / "first", frame=0)
+    assert np.abs(read_table(tmp_path / "first" / "path_mid.csv")["shear_angle"]).max() < 1e-9
 
 
 def test_path_deck_errors_are_located():
