@@ -3,7 +3,7 @@
     python studies/forming.py render RESULT_DIR OUT.png [--field shear_angle] [--view top|side] [--title T]
     python studies/forming.py force RESULT_DIR... OUT.png [--tool punch]   # punch force against stroke
     python studies/forming.py paths PATH_NAME RESULT_DIR... OUT.png [--labels L...]  # shear along a path, runs compared
-    python studies/forming.py retable DECK RESULT_DIR OUT_DIR [--set PATH=VALUE...] [--frame K]  # end tables from a frame
+    python studies/forming.py retable DECK RESULT_DIR OUT_DIR [--set PATH=VALUE...] [--frame K]  # tables at a frame
     python studies/forming.py mirror RESULT_DIR       # full model: how far each frame's shear is from mirror symmetry
     python studies/forming.py ellipticity RESULT_DIR FRAMES [--box B] [--preset 3weave]  # elements past the law's limit
     python studies/forming.py rows PATH_NAME RESULT_DIR... [--until S]  # element-to-element alternation along a path
@@ -24,12 +24,12 @@ Exact for hyperelastic hexahedral blanks (their fields depend on the positions o
 degrees of freedom are refused (the frame does not hold their directors).
 `mirror` reads a full (not halved) model's hexahedral frames and prints, per frame, the largest and 95th-percentile
 |gamma(x, y) + gamma(x, -y)| over element pairs mirrored about y = 0 (the shear angle is odd under that mirror when
-the warp lies along x): zero for a mirror-symmetric answer. `rows` reads an element-wise path (no ``window``) and prints, per run, the shear of each element column the path
-crosses in order and the rms and largest second difference gamma[i-1] - 2 gamma[i] + gamma[i+1] of those values up to arc
-length S (and beyond it): about h^2 gamma'' for a field that is smooth on the element scale h, as large as the
-jumps themselves where neighbouring element rows alternate. `ellipticity` evaluates the fabric law at each
-element's centre deformation gradient (from the frame's displacements; elements whose reference centroid has
-|x|, y < B) and counts those whose acoustic tensor has lost strong ellipticity (smallest eigenvalue over 48 unit
+the warp lies along x): zero for a mirror-symmetric answer. `rows` reads an element-wise path (no ``window``) and
+prints, per run, the shear of each element column the path crosses in order and the rms and largest second
+difference gamma[i-1] - 2 gamma[i] + gamma[i+1] of those values up to arc length S (and beyond it): about
+h^2 gamma'' for a field that is smooth on the element scale h, as large as the jumps themselves where
+neighbouring element rows alternate. `ellipticity` evaluates the fabric law at each element's centre deformation
+gradient (from the frame's displacements; elements whose reference centroid has |x|, y < B) and counts those whose acoustic tensor has lost strong ellipticity (smallest eigenvalue over 48 unit
 directions, 36 in the fibre plane, below zero; tangent by central differences of the point kernel).
 """
 
@@ -178,15 +178,17 @@ def element_rows(result_dir, name: str) -> tuple[np.ndarray, np.ndarray]:
     path ``name``: one value per column of elements crossed, in path order. A column is a run of consecutive
     samples with the same value (a through-thickness average is one value per column; the `element` column of the
     table names the element at the sample's reference point, which on a layer interface alternates between the
-    layers)."""
+    layers). Two neighbouring columns with exactly the same shear merge (the rest state, an exactly symmetric
+    zone): the measure is for deformed blanks."""
     data = np.genfromtxt(Path(result_dir) / f"path_{name}.csv", delimiter=",", names=True)
     first = np.r_[True, data["shear_angle"][1:] != data["shear_angle"][:-1]]
     return data["arc_length"][first], data["shear_angle"][first]
 
 
-def rows(name: str, result_dir, until: float = np.inf) -> tuple[float, float, float]:
-    """(rms, largest |second difference| of the per-element shear [deg] up to arc length ``until``, rms beyond)."""
-    s, g = element_rows(result_dir, name)
+def rows(name: str, result_dir, until: float = np.inf, columns=None) -> tuple[float, float, float]:
+    """(rms, largest |second difference| of the per-element shear [deg] up to arc length ``until``, rms beyond);
+    ``columns``: ``element_rows``'s answer when already read."""
+    s, g = element_rows(result_dir, name) if columns is None else columns
     d2, mid = g[2:] - 2.0 * g[1:-1] + g[:-2], s[1:-1]
     near, far = d2[mid <= until], d2[mid > until]
     rms = lambda v: float(np.sqrt(np.mean(v ** 2))) if len(v) else float("nan")  # noqa: E731
@@ -344,8 +346,9 @@ def main() -> None:
         print(" ".join(retable(a.deck, a.result_dir, a.out_dir, sets, a.frame)))
     elif a.cmd == "rows":
         for d in a.result_dirs:
-            s_, g = element_rows(d, a.name)
-            near, big, far = rows(a.name, d, a.until)
+            columns = element_rows(d, a.name)
+            g = columns[1]
+            near, big, far = rows(a.name, d, a.until, columns)
             print(f"{d}: shear per element along {a.name} " + " ".join(f"{v:.1f}" for v in g))
             print(f"  second difference up to {a.until:g} mm: rms {near:.1f} deg, largest {big:.1f} deg; "
                   f"beyond: rms {far:.1f} deg")

@@ -16,14 +16,16 @@ couples the nodes of each element; a section add-on (an effect with a ``group``)
 neighbouring elements: one that names the element pairs it couples (``coupled_elements``: ``fibre_bending``'s
 hinges) is given the nodes of each pair, any other the nodes of every pair of elements that share a node (a
 superset); other internal effects are taken as nodal. The tighter pattern of the hinges needs fewer colours, hence
-fewer force calls per tangent, for the same tangent (3 mm three-point-bending strip: 65 colours against 104). ``probe_pattern`` finds the
-pattern of a small problem column by column, to check the connectivity pattern against (tests).
+fewer force calls per tangent, for the same tangent (three-point-bending strip: 65 colours against 104 on 3 mm, 68
+against 108 on 1 mm). ``probe_pattern`` finds the pattern of a small problem column by column, to check the
+connectivity pattern against (tests).
 
 Load stepping: increments of lambda grow after an increment converging in few iterations and are halved after one
 that fails (no convergence, a non-finite force, an inverted element). Under prescribed displacements each increment
 starts from the secant extrapolation of the last two equilibria, and the first moves the held nodes by at most a
 quarter of the smallest element edge (see ``solve``). Stability of an answer: ``negative_eigenvalues`` (Sylvester's
-inertia of the tangent); an equilibrium reached by continuation is not necessarily the only one.
+inertia of the tangent); an equilibrium reached by continuation is not necessarily the only one, and ``stable``
+checks every increment and switches off a branch that has lost its stability (see ``solve``).
 
 Shapes: dofs numbered 3 node + component; x, X (n_node, 3) [mm]; forces (n_node, 3) [N]; K (n_free, n_free) [N/mm].
 """
@@ -273,12 +275,13 @@ def solve(problem, first: float = 0.1, min_increment: float = 1e-4, max_iteratio
     elements reached an equilibrium with three negative eigenvalues or a stable one depending on round-off (the
     order of the tangent's colours). With ``stable`` every converged increment's tangent is checked (``inertia``);
     where it has negative eigenvalues the equilibrium is perturbed along a direction of negative curvature
-    (``negative_direction``, largest entry a quarter of the smallest element edge, both signs tried) and Newton, which descends the
-    potential, re-solved at the same load: the branch switch of numerical continuation (E. Riks, An incremental
-    approach to the solution of snapping and buckling problems, Int. J. Solids Struct. 15, 1979; W. Wagner,
-    P. Wriggers, A simple method for the calculation of postcritical branches, Eng. Comput. 5, 1988). The
-    perturbed answer with fewer negative eigenvalues (then the lower potential) is kept, up to three switches per
-    increment. ``StaticResult.switches`` counts them, ``unstable`` is the count left at the answer.
+    (``negative_direction``, largest entry a quarter of the smallest element edge, both signs tried) and Newton,
+    which descends the potential, re-solved at the same load: the branch switch of numerical continuation
+    (E. Riks, An incremental approach to the solution of snapping and buckling problems, Int. J. Solids Struct. 15,
+    1979; W. Wagner, P. Wriggers, A simple method for the calculation of postcritical branches, Eng. Comput. 5,
+    1988). The perturbed answer with fewer negative eigenvalues (then the lower potential, away from the start) is
+    kept, up to three switches per increment. ``StaticResult.switches`` counts them, ``unstable`` is the count left
+    at the answer (-1 where the factorisation cannot tell; no switch is tried then).
     """
     t0 = time.perf_counter()
     sp_ = StaticProblem(problem)
@@ -317,8 +320,9 @@ def solve(problem, first: float = 0.1, min_increment: float = 1e-4, max_iteratio
         xt, ok, its, rel = _newton(sp_, xt, target, fe, S, colours, h, max_iterations, rtol, ftol, verbose)
         iterations += its
         if ok and stable:
-            xt, n_neg, n_sw = _stable_branch(sp_, xt, target, fe, S, colours, h, max_iterations, rtol, ftol)
+            xt, n_neg, n_sw, its = _stable_branch(sp_, xt, target, fe, S, colours, h, max_iterations, rtol, ftol)
             switches += n_sw
+            iterations += its
             unstable = n_neg
             if n_sw:
                 x = xt  # no secant predictor across a branch switch: the next increment starts from the new branch
@@ -337,7 +341,8 @@ def solve(problem, first: float = 0.1, min_increment: float = 1e-4, max_iteratio
 
 
 def _newton(sp_: StaticProblem, xt: np.ndarray, target: float, fe: np.ndarray, S, colours, h: float,
-            max_iterations: int, rtol: float, ftol: float, verbose: bool = False) -> tuple[np.ndarray, bool, int, float]:
+            max_iterations: int, rtol: float, ftol: float, verbose: bool = False
+            ) -> tuple[np.ndarray, bool, int, float]:
     """Equilibrium at load factor ``target`` from the start xt (n_node, 3) [mm], its held dofs where they are: the
     damped, shifted Newton iteration of ``solve``. Returns (x, converged, iterations, relative residual)."""
     X = sp_.X
@@ -403,29 +408,39 @@ def _newton(sp_: StaticProblem, xt: np.ndarray, target: float, fe: np.ndarray, S
 
 
 def _stable_branch(sp_: StaticProblem, x: np.ndarray, lam: float, fe: np.ndarray, S, colours, h: float,
-                   max_iterations: int, rtol: float, ftol: float) -> tuple[np.ndarray, int, int]:
-    """(x, negative eigenvalues at x, switches made) after at most three branch switches from the equilibrium x at
-    load factor lam (see ``solve``, ``stable``)."""
-    n_neg, mode = negative_direction(sp_.tangent(x, S, colours, h))
-    switches = 0
+                   max_iterations: int, rtol: float, ftol: float) -> tuple[np.ndarray, int, int, int]:
+    """(x, negative eigenvalues at x or -1 when the factorisation cannot tell, switches made, Newton iterations
+    spent) after at most three branch switches from the equilibrium x at load factor lam (see ``solve``,
+    ``stable``). A candidate is taken when it has fewer negative eigenvalues, or as many and a lower potential at
+    a distance from x (not Newton falling back onto x)."""
+    try:
+        n_neg, mode = negative_direction(sp_.tangent(x, S, colours, h))
+    except (ValueError, RuntimeError):  # off-diagonal pivots, a singular tangent: stability unknown, no switch
+        return x, -1, 0, 0
+    switches = iterations = 0
+    apart = rtol * 1e3 * max(float(np.abs(x - sp_.X).max()), 1e-300)  # far beyond the solver's own tolerance
     while n_neg > 0 and switches < 3:
         amplitude = 0.25 * sp_.smallest_edge()
         best = None
         for sign in (1.0, -1.0):
             trial = x.copy()
             trial.ravel()[sp_.free] += sign * amplitude * mode
-            y, ok, _, _ = _newton(sp_, trial, lam, fe, S, colours, h, max_iterations, rtol, ftol)
-            if not ok:
+            y, ok, its, _ = _newton(sp_, trial, lam, fe, S, colours, h, max_iterations, rtol, ftol)
+            iterations += its
+            if not ok or np.abs(y - x).max() < apart:
                 continue
-            n, v = negative_direction(sp_.tangent(y, S, colours, h))
+            try:
+                n, v = negative_direction(sp_.tangent(y, S, colours, h))
+            except (ValueError, RuntimeError):
+                continue
             key = (n, sp_.potential(y, lam))
             if best is None or key < best[0]:
                 best = (key, y, v)
-        if best is None or best[0][0] >= n_neg and best[0][1] >= sp_.potential(x, lam):
+        if best is None or best[0] >= (n_neg, sp_.potential(x, lam)):
             break  # no switch leads anywhere better: keep the branch (its count is reported)
         (n_neg, _), x, mode = best
         switches += 1
-    return x, n_neg, switches
+    return x, n_neg, switches, iterations
 
 
 def continuation(make, params, x0: np.ndarray | None = None, max_inserts: int = 6, **kw) -> list:
@@ -468,35 +483,34 @@ def negative_eigenvalues(problem, x: np.ndarray, h: float | None = None) -> int:
 
 def inertia(K: sp.spmatrix) -> int:
     """Number of negative eigenvalues of the symmetric part of K (n, n) (``negative_direction``'s count)."""
-    return negative_direction(K)[0]
+    return negative_direction(K, direction=False)[0]
 
 
-def negative_direction(K: sp.spmatrix) -> tuple[int, np.ndarray | None]:
+def negative_direction(K: sp.spmatrix, direction: bool = True) -> tuple[int, np.ndarray | None]:
     """(number of negative eigenvalues of the symmetric part of K (n, n), a direction v (n,) of negative curvature,
-    v^T K v < 0, largest entry 1; None when the count is 0).
+    v^T K v < 0, largest entry 1; None when the count is 0 or ``direction`` is False).
 
-    Sylvester's law of inertia: a symmetric K = P^T L D L^T P has as many negative eigenvalues as D has negative
-    entries. The LDL^T comes from SuperLU with pivots kept on the diagonal in a symmetric ordering (``SymmetricMode``,
-    no threshold pivoting), so U = D L^T and U's diagonal is D; the count is refused (ValueError) if SuperLU
-    permuted rows and columns differently anyway. The direction: v = P^T U^-1 e_i gives v^T K v = 1 / D_ii, so
-    the pivot i that is most negative relative to its row's diagonal entry of K yields a direction along which the
-    energy falls (a negative-curvature direction from the factors, as modified-Cholesky optimisers take; not the
-    eigenvector, which Lanczos about zero misses when small positive eigenvalues crowd it, as on the 1 mm bending
-    strip)."""
+    Sylvester's law of inertia: a symmetric K with A = K[q][:, q] = L D L^T has as many negative eigenvalues as D
+    has negative entries. The LDL^T comes from SuperLU with pivots kept on the diagonal in a symmetric ordering
+    (``SymmetricMode``, no threshold pivoting, perm_r = perm_c = p: row and column j of K go to position p[j], so
+    q = argsort(p)), where U = D L^T and U's diagonal is D; the count is refused (ValueError) if SuperLU permuted
+    rows and columns differently anyway. The direction: z = U^-1 e_i gives z^T A z = 1 / D_ii, and v = z[p] (v_j =
+    z at K's index j's position) gives v^T K v = 1 / D_ii; the pivot i most negative relative to its diagonal entry
+    of K is taken: a direction along which the energy falls (a negative-curvature direction from the factors, as
+    modified-Cholesky optimisers take; not the eigenvector, which Lanczos about zero misses when small positive
+    eigenvalues crowd it, as on the 1 mm bending strip)."""
     K = (0.5 * (K + K.T)).tocsc()
     lu = spl.splu(K, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
     if not np.array_equal(lu.perm_r, lu.perm_c):
         raise ValueError("negative_eigenvalues: the factorisation pivoted off the diagonal; inertia not available")
     d = lu.U.diagonal()
     count = int(np.sum(d < 0.0))
-    if count == 0:
-        return 0, None
-    p = lu.perm_c  # K[p][:, p] = L U
-    scale = np.abs(K.diagonal()[p]) + 1e-300
-    i = int(np.argmin(d / scale))
+    if count == 0 or not direction:
+        return count, None
+    p = lu.perm_c
+    q = np.argsort(p)  # A = K[q][:, q]
+    i = int(np.argmin(d / (np.abs(K.diagonal()[q]) + 1e-300)))
     e = np.zeros(len(d))
     e[i] = 1.0
-    z = spl.spsolve_triangular(lu.U.tocsr(), e, lower=False)
-    v = np.empty_like(z)
-    v[p] = z
+    v = spl.spsolve_triangular(lu.U.tocsr(), e, lower=False)[p]
     return count, v / np.abs(v).max()

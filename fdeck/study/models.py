@@ -74,8 +74,8 @@ class StaticSolve(Card):
     max_iterations: int = Field(20, ge=1, description="Newton iterations per load increment before it is halved.")
     follow_stable: bool = Field(False, description="Check every converged load increment's stability and, where "
                                 "the branch followed has lost it (negative eigenvalues of the tangent), switch to a "
-                                "stable branch along a direction of negative curvature (fdeck.engine.static, `stable`); the "
-                                "summary counts the switches (`branch_switches`).")
+                                "stable branch along a direction of negative curvature (fdeck.engine.static, "
+                                "`stable`); the summary counts the switches (`branch_switches`).")
     stability: bool = Field(False, description="Also count the negative eigenvalues of the tangent stiffness at "
                             "the answer (summary `negative_eigenvalues`: 0 at a stable equilibrium; one sparse "
                             "factorisation more), or at the last equilibrium of a solve that stops short of full "

@@ -9,7 +9,8 @@ end of the last step (load-stepped Newton), optionally first along a continuatio
 fibre compression ratio 1 -> 0.3 -> ... -> the deck's own value, ``static.continuation``), then evaluates the deck's
 measures at the equilibrium (velocities zero) and writes ``summary.json`` in the shape the studies read (``status``,
 ``measures``, ``wall_time``) plus the solver's cost (``force_calls``, ``newton_iterations``, ``increments``,
-``branch_switches``) and the final positions (``final_positions.npy``, (n_node, 3) [mm]). A run that does not converge is ``failed`` with the load
+``branch_switches``) and the final positions (``final_positions.npy``, (n_node, 3) [mm]). A run that does not
+converge is ``failed`` with the load
 factor or continuation value it reached: a row with its status, as for a dynamic run.
 """
 
