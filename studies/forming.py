@@ -29,8 +29,9 @@ prints, per run, the shear of each element column the path crosses in order and 
 difference gamma[i-1] - 2 gamma[i] + gamma[i+1] of those values up to arc length S (and beyond it): about
 h^2 gamma'' for a field that is smooth on the element scale h, as large as the jumps themselves where
 neighbouring element rows alternate. `ellipticity` evaluates the fabric law at each element's centre deformation
-gradient (from the frame's displacements; elements whose reference centroid has |x|, y < B) and counts those whose acoustic tensor has lost strong ellipticity (smallest eigenvalue over 48 unit
-directions, 36 in the fibre plane, below zero; tangent by central differences of the point kernel).
+gradient (from the frame's displacements; elements whose reference centroid has |x|, y < B) and counts those
+whose acoustic tensor has lost strong ellipticity (smallest eigenvalue over 48 unit directions, 36 in the fibre
+plane, below zero; tangent by central differences of the point kernel).
 """
 
 from __future__ import annotations
@@ -180,9 +181,9 @@ def element_rows(result_dir, name: str) -> tuple[np.ndarray, np.ndarray]:
     table names the element at the sample's reference point, which on a layer interface alternates between the
     layers). Two neighbouring columns with exactly the same shear merge (the rest state, an exactly symmetric
     zone): the measure is for deformed blanks."""
-    data = np.genfromtxt(Path(result_dir) / f"path_{name}.csv", delimiter=",", names=True)
-    first = np.r_[True, data["shear_angle"][1:] != data["shear_angle"][:-1]]
-    return data["arc_length"][first], data["shear_angle"][first]
+    s, g = read_path(result_dir, name)
+    first = np.r_[True, g[1:] != g[:-1]]
+    return s[first], g[first]
 
 
 def rows(name: str, result_dir, until: float = np.inf, columns=None) -> tuple[float, float, float]:

@@ -3,8 +3,8 @@ buys (spurious-mode indicator, end rise) against what it costs (wall time, us pe
 
     python studies/three_point_bending.py [VARIANT ...]   # default: every deck in decks/three_point_bending/
     python studies/three_point_bending.py --report        # table + pictures from existing results only
-    python studies/three_point_bending.py --static DIR    # table + pictures of a finished static study
-                                                          # (fdeck study decks/studies/three_point_bending_static*.yaml -o DIR)
+    python studies/three_point_bending.py --static DIR    # table + pictures of a finished static study, DIR from
+    fdeck study decks/studies/three_point_bending_static*.yaml -o DIR
 
 Results go to results/three_point_bending/<variant>/; the table to studies/out/three_point_bending.md (rows of
 variants not run this time are kept, so the 3 mm and 1 mm variants can be run separately) and the side views
@@ -98,8 +98,9 @@ STATIC_HEADER = ["| variant | elements | spurious-mode indicator [mm] | end rise
 
 
 def static_report(study_dir: Path) -> str:
-    """Table of a static study's variants (three_point_bending_static*.yaml; punch force of the whole 30 mm wide sample from the half slice's load
-    strip reaction, as ``report``) and the side view of each equilibrium to docs/img/three_point_bending_static_*."""
+    """Table of a static study's variants (three_point_bending_static*.yaml; punch force of the whole 30 mm wide
+    sample from the half slice's load strip reaction, as ``report``) and the side view of each equilibrium to
+    docs/img/three_point_bending_static_*."""
     import numpy as np
     import yaml
 

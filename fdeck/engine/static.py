@@ -320,16 +320,17 @@ def solve(problem, first: float = 0.1, min_increment: float = 1e-4, max_iteratio
         xt, ok, its, rel = _newton(sp_, xt, target, fe, S, colours, h, max_iterations, rtol, ftol, verbose)
         iterations += its
         if ok and stable:
-            xt, n_neg, n_sw, its = _stable_branch(sp_, xt, target, fe, S, colours, h, max_iterations, rtol, ftol)
+            xt, n_neg, n_sw, sw_its = _stable_branch(sp_, xt, target, fe, S, colours, h, max_iterations, rtol,
+                                                     ftol)
             switches += n_sw
-            iterations += its
+            iterations += sw_its  # (``its`` stays Newton's own count: it sets the next increment's size)
             unstable = n_neg
-            if n_sw:
-                x = xt  # no secant predictor across a branch switch: the next increment starts from the new branch
             if verbose:
                 print(f"  lambda {target:.4g}: {n_neg} negative eigenvalues after {n_sw} branch switches")
         if ok:
             x_prev, lam_prev = x, lam
+            if stable and n_sw:
+                x_prev = None  # no secant predictor across a branch switch: the next increment starts on the new branch
             x, lam = xt, target
             increments += 1
             history.append((lam, its))

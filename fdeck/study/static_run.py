@@ -86,7 +86,9 @@ def _run_static(deck_data: dict, base_dir: Path, out_dir: Path, options: dict, s
                                for c, v in zip(m.columns, m.evaluate(res.x, zero))}
         summary["final"] = final_values(problem, res.x)
         if options.get("stability", False):
-            summary.update(_stability(static, problem, res.x))
+            # the stable-branch solve counted them at the answer already (unless the factorisation could not tell)
+            summary.update({"negative_eigenvalues": res.unstable} if res.unstable >= 0 else
+                           _stability(static, problem, res.x))
         np.save(out_dir / POSITIONS, res.x)
     else:
         summary["message"] = (f"static solve stopped at load factor {res.load_factor:.3g}" if reached is None else
