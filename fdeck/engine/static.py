@@ -87,6 +87,8 @@ class StaticProblem:
             raise ValueError("static solve: a load depends on the positions (follower load), not supported")
         self.held, self.x_held = self._held()
         self.free = np.flatnonzero(~self.held)
+        self.size = float(np.ptp(self.X, axis=0).max())  # the model's largest extent [mm]
+        self.moved = self.x_held - self.X.ravel()[self.held] != 0.0  # the held dofs that the deck moves
         self.calls = 0
         self._zero = np.zeros((self.n, 3))
 
@@ -256,7 +258,8 @@ def solve(problem, first: float = 0.1, min_increment: float = 1e-4, max_iteratio
     """Static equilibrium of ``problem`` (a compiled ``Problem``) under its loads at the end of its last step.
 
     Newton on the free dofs per load increment (the first one to ``first``; ``first = 1`` with ``x0`` a nearby
-    equilibrium solves at full load at once, as ``continuation`` does); converged when the largest correction is
+    equilibrium solves at full load at once, as ``continuation`` does; from ``x0`` without loads a failed attempt
+    ends the solve, as every smaller increment would be the same problem); converged when the largest correction is
     below rtol times the largest displacement (at least rtol times the model's size) and the residual's norm below
     ftol of the load's. ``StaticResult.residual`` is that ratio at the answer.
 
@@ -286,7 +289,7 @@ def solve(problem, first: float = 0.1, min_increment: float = 1e-4, max_iteratio
     t0 = time.perf_counter()
     sp_ = StaticProblem(problem)
     X = sp_.X
-    size = float(np.ptp(X, axis=0).max())
+    size = sp_.size
     h = 1e-11 * size if h is None else h
     S = sp_.dof_pattern(sp_.pattern())
     colours = StaticProblem.colour(S)
@@ -335,6 +338,8 @@ def solve(problem, first: float = 0.1, min_increment: float = 1e-4, max_iteratio
             increments += 1
             history.append((lam, its))
             dlam = min(dlam * (2.0 if its <= 6 else 1.0), 0.5)
+        elif x0 is not None and not np.any(fe):
+            break  # from a start state with no loads every smaller increment is the same problem: stop, not retry
         else:
             dlam *= 0.5
     return StaticResult(x, lam >= 1.0, lam, increments, iterations, sp_.calls, int(colours.max() + 1),
@@ -346,10 +351,8 @@ def _newton(sp_: StaticProblem, xt: np.ndarray, target: float, fe: np.ndarray, S
             ) -> tuple[np.ndarray, bool, int, float]:
     """Equilibrium at load factor ``target`` from the start xt (n_node, 3) [mm], its held dofs where they are: the
     damped, shifted Newton iteration of ``solve``. Returns (x, converged, iterations, relative residual)."""
-    X = sp_.X
-    size = float(np.ptp(X, axis=0).max())
+    X, size, moved = sp_.X, sp_.size, sp_.moved
     load_norm = max(np.linalg.norm(fe), 1e-300)
-    moved = sp_.x_held - X.ravel()[sp_.held] != 0.0  # the held dofs that the deck moves
     moving = bool(moved.any())
     ok, its, mu, rel = False, 0, 0.0, float("nan")
     for its in range(1, max_iterations + 1):
@@ -420,8 +423,8 @@ def _stable_branch(sp_: StaticProblem, x: np.ndarray, lam: float, fe: np.ndarray
         return x, -1, 0, 0
     switches = iterations = 0
     apart = rtol * 1e3 * max(float(np.abs(x - sp_.X).max()), 1e-300)  # far beyond the solver's own tolerance
+    amplitude = 0.25 * sp_.smallest_edge() if n_neg > 0 else 0.0
     while n_neg > 0 and switches < 3:
-        amplitude = 0.25 * sp_.smallest_edge()
         best = None
         for sign in (1.0, -1.0):
             trial = x.copy()
@@ -477,9 +480,8 @@ def negative_eigenvalues(problem, x: np.ndarray, h: float | None = None) -> int:
     0 at a stable equilibrium of a displacement-driven or dead-loaded problem (``inertia``; K is the
     finite-difference tangent, symmetrised)."""
     sp_ = StaticProblem(problem)
-    size = float(np.ptp(sp_.X, axis=0).max())
     S = sp_.dof_pattern(sp_.pattern())
-    return inertia(sp_.tangent(x, S, StaticProblem.colour(S), 1e-11 * size if h is None else h))
+    return inertia(sp_.tangent(x, S, StaticProblem.colour(S), 1e-11 * sp_.size if h is None else h))
 
 
 def inertia(K: sp.spmatrix) -> int:
