@@ -5,6 +5,8 @@ buys (spurious-mode indicator, end rise) against what it costs (wall time, us pe
     python studies/three_point_bending.py --report        # table + pictures from existing results only
     python studies/three_point_bending.py --static DIR    # table + pictures of a finished static study, DIR from
     fdeck study decks/studies/three_point_bending_static*.yaml -o DIR
+    python studies/three_point_bending.py --onset DECK OUT [--set PATH=VALUE ...]  # where the static path loses
+                                                          # stability, and why (deck paths set as in a study)
 
 Results go to results/three_point_bending/<variant>/; the table to studies/out/three_point_bending.md (rows of
 variants not run this time are kept, so the 3 mm and 1 mm variants can be run separately) and the side views
@@ -134,12 +136,127 @@ def static_report(study_dir: Path) -> str:
     return "\n".join(STATIC_HEADER + rows)
 
 
+class _Unstable(Exception):
+    """Raised by ``onset``'s watcher at the first increment whose tangent has a negative eigenvalue."""
+
+
+def onset(deck: Path, out: Path, sets: dict | None = None, modes: int = 4, dense_limit: int = 12000) -> dict:
+    """Static path of a three-point-bending deck watched increment by increment: the tangent's negative eigenvalues
+    (``static.inertia``) and the elements whose law has lost strong ellipticity in the x-z slice at their centre F
+    (``fabric_hyper.smallest_acoustic``, 72 directions, x-z polarisations: the slice holds y). Stops at the first
+    increment with a negative eigenvalue; writes out/onset.json (per increment: load factor, stroke [mm],
+    negative eigenvalues, elements past ellipticity; at the onset the lowest eigenvalues, dense) and out/onset.png
+    (elements past ellipticity at the last stable and the first unstable increment; the lowest mode drawn on the
+    latter, largest entry 3 mm). ``sets``: {deck path: value} applied first. The eigenvalues are dense, so only
+    up to ``dense_limit`` free dofs (the 1 mm slice has 6 464)."""
+    import math
+
+    import numpy as np
+    import scipy.linalg as sla
+    import yaml
+
+    from fdeck.compile.problem import compile_deck
+    from fdeck.deck.model import Deck
+    from fdeck.engine import static
+    from fdeck.physics.elements.hex8 import shape_gradients_local
+    from fdeck.physics.materials.fabric_hyper import smallest_acoustic
+    from fdeck.study.deck_paths import set_value
+
+    out.mkdir(parents=True, exist_ok=True)
+    data = yaml.safe_load(deck.read_text())
+    for key, value in (sets or {}).items():
+        set_value(data, key, value)
+    problem = compile_deck(Deck.model_validate(data), deck.parent)
+    sp_ = static.StaticProblem(problem)
+    S = sp_.dof_pattern(sp_.pattern())
+    colours, h = static.StaticProblem.colour(S), 1e-11 * sp_.size
+    g = problem.groups[0]
+    conn, X = np.asarray(g.conn), sp_.X
+    dxi = shape_gradients_local(np.zeros((1, 3)))[0]
+    dNdX = np.einsum("aj,eji->eai", dxi, np.linalg.inv(np.einsum("eai,aj->eij", X[conn], dxi)))
+    N = np.array([[math.cos(t), 0.0, math.sin(t)] for t in np.linspace(0.0, math.pi, 72, endpoint=False)])
+    stroke = float(np.abs(sp_.x_held - X.ravel()[sp_.held]).max())
+    log, states = [], []
+
+    def lost(x):
+        F = np.einsum("eai,eaj->eij", x[conn], dNdX)
+        return smallest_acoustic(F, np.asarray(g.frame)[0], np.asarray(g.params)[0], N, components=(0, 2)) < 0.0
+
+    def watch(lam, x):
+        K = sp_.tangent(x, S, colours, h)
+        n_neg, bad = static.inertia(K), lost(x)
+        log.append({"load_factor": lam, "stroke": lam * stroke, "negative_eigenvalues": n_neg,
+                    "past_ellipticity": int(bad.sum())})
+        print(f"stroke {lam * stroke:6.2f} mm: {n_neg} negative eigenvalues, {int(bad.sum())} of {len(conn)} "
+              f"elements past strong ellipticity", flush=True)
+        states.append((x.copy(), bad, K))
+        del states[:-2]
+        if n_neg:
+            raise _Unstable
+
+    result = {"deck": str(deck), "set": sets or {}, "elements": len(conn), "increments": log}
+    try:
+        r = static.solve(problem, max_iterations=30, on_increment=watch)
+        result["stopped_at_load_factor"] = r.load_factor  # (1.0: the whole stroke stable)
+    except _Unstable:
+        x, bad, K = states[-1]
+        mode = None
+        if K.shape[0] <= dense_limit:
+            Kd = K.toarray()
+            w, v = sla.eigh(0.5 * (Kd + Kd.T), subset_by_index=[0, modes - 1])
+            result["lowest_eigenvalues"] = w.tolist()
+            mode = np.zeros(X.size)
+            mode[sp_.free] = v[:, 0]
+            mode = mode.reshape(-1, 3)
+        _draw_onset(states, conn, mode, log, out / "onset.png")
+    (out / "onset.json").write_text(json.dumps(result, indent=1))
+    return result
+
+
+def _draw_onset(states, conn, mode, log, png: Path) -> None:
+    """Two panels (y = 0 faces): elements past ellipticity (red) at the last two increments, the lowest mode on the
+    last."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+    from matplotlib.collections import PolyCollection
+
+    faces = conn[:, [0, 1, 5, 4]]
+    fig, axes = plt.subplots(len(states), 1, figsize=(8, 3.2 * len(states)))
+    for ax, (x, bad, _), rec in zip(np.atleast_1d(axes), states, log[-len(states):]):
+        ax.add_collection(PolyCollection(x[faces][:, :, [0, 2]], array=bad.astype(float), cmap="coolwarm",
+                                         clim=(0, 1), edgecolors="0.6", linewidths=0.1))
+        title = (f"stroke {rec['stroke']:.1f} mm: {rec['past_ellipticity']} elements past strong ellipticity (red), "
+                 f"{rec['negative_eigenvalues']} negative eigenvalues")
+        if rec is log[-1] and rec["negative_eigenvalues"] and mode is not None:
+            y = x + 3.0 * mode / np.abs(mode).max()
+            for f in y[faces]:
+                ax.plot(f[[0, 1, 2, 3, 0], 0], f[[0, 1, 2, 3, 0], 2], lw=0.3, color="k")
+            title += "; black: + the lowest mode"
+        ax.autoscale()
+        ax.set_aspect("equal")
+        ax.set_title(title, fontsize=8)
+    fig.tight_layout()
+    fig.savefig(png, dpi=120)
+    plt.close(fig)
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("variants", nargs="*")
     ap.add_argument("--report", action="store_true")
     ap.add_argument("--static", type=Path, help="folder of a finished three_point_bending_static study")
+    ap.add_argument("--onset", type=Path, nargs=2, metavar=("DECK", "OUT"), help="where the static path of DECK "
+                    "loses stability: per increment negative eigenvalues and elements past strong ellipticity")
+    ap.add_argument("--set", nargs="+", default=[], metavar="PATH=VALUE", help="with --onset: deck path = YAML value")
     args = ap.parse_args()
+    if args.onset:
+        import yaml
+
+        onset(*args.onset, sets=dict((k, yaml.safe_load(v)) for k, v in (i.split("=", 1) for i in args.set)))
+        return
     if args.static:
         print(static_report(args.static))
         return

@@ -164,3 +164,30 @@ def test_negative_direction_has_the_curvature_of_its_pivot():
         z = spl.spsolve_triangular(lu.U.tocsr(), e, lower=False)[lu.perm_c]
         scale = 1.0 / np.abs(z).max()
         assert curvature < 0.0 and abs(curvature / (scale ** 2 / d[i]) - 1.0) < 1e-9
+
+
+def test_on_increment_sees_every_increment_and_the_column_turn_unstable_at_euler():
+    """Requirement (the path watcher of ``studies/three_point_bending.py --onset``): ``solve(on_increment=...)`` is
+    called once per converged increment with its load factor and positions, in order, the last one the answer.
+    The straight clamped-clamped column pushed to 1.1 e1 (plain continuation stays straight, see above) then has
+    no negative eigenvalue at the increments below e1 and one at those above: the last stable and the first
+    unstable increment bracket the first critical strain within the mesh's 1 % (measured once: the hexahedral
+    column's e1 within 1 % of the closed form; see the count test above)."""
+    L, h, E, G = 40.0, 1.0, 1000.0, 500.0
+    EI, A = E * h ** 4 / 12.0, h * h
+    P = 4.0 * math.pi ** 2 * EI / L ** 2
+    e1 = P / (1.0 + P / (5.0 / 6.0 * G * A)) / (E * A)
+    data = strip(L, h, 40, 4, E, G, [{"type": "displacement", "nodes": "tip", "dofs": ["x"], "value": -1.1 * e1 * L},
+                                     {"type": "fixed", "nodes": "tip", "dofs": ["z"]}])
+    problem = compile_deck(Deck.model_validate(data), DECKS)
+    seen = []
+    res = static.solve(problem, on_increment=lambda lam, x: seen.append((lam, x.copy())))
+    assert res.converged
+    assert [lam for lam, _ in seen] == [lam for lam, _ in res.history]
+    assert np.array_equal(seen[-1][1], res.x)
+    counts = [(lam * 1.1, static.negative_eigenvalues(problem, x)) for lam, x in seen]
+    assert all(n in (0, 1) for _, n in counts), counts
+    stable = [s for s, n in counts if n == 0]
+    unstable = [s for s, n in counts if n == 1]
+    assert stable and unstable and max(stable) < min(unstable), counts
+    assert max(stable) < 1.01 and min(unstable) > 0.99, counts

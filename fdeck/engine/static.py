@@ -254,7 +254,7 @@ class StaticProblem:
 
 def solve(problem, first: float = 0.1, min_increment: float = 1e-4, max_iterations: int = 30, rtol: float = 1e-8,
           ftol: float = 1e-4, h: float | None = None, x0: np.ndarray | None = None, stable: bool = False,
-          verbose: bool = False) -> StaticResult:
+          verbose: bool = False, on_increment=None) -> StaticResult:
     """Static equilibrium of ``problem`` (a compiled ``Problem``) under its loads at the end of its last step.
 
     Newton on the free dofs per load increment (the first one to ``first``; ``first = 1`` with ``x0`` a nearby
@@ -285,6 +285,9 @@ def solve(problem, first: float = 0.1, min_increment: float = 1e-4, max_iteratio
     1988). The perturbed answer with fewer negative eigenvalues (then the lower potential, away from the start) is
     kept, up to three switches per increment. ``StaticResult.switches`` counts them, ``unstable`` is the count left
     at the answer (-1 where the factorisation cannot tell; no switch is tried then).
+
+    ``on_increment(lam, x)``, when given, is called after every converged increment with its load factor and
+    positions (n_node, 3) [mm] (a study watching the path: ``studies/three_point_bending.py --onset``).
     """
     t0 = time.perf_counter()
     sp_ = StaticProblem(problem)
@@ -336,6 +339,8 @@ def solve(problem, first: float = 0.1, min_increment: float = 1e-4, max_iteratio
                 x_prev = None  # no secant predictor across a branch switch: the next increment starts on the new branch
             x, lam = xt, target
             increments += 1
+            if on_increment is not None:
+                on_increment(lam, x)
             history.append((lam, its))
             dlam = min(dlam * (2.0 if its <= 6 else 1.0), 0.5)
         elif x0 is not None and not np.any(fe):

@@ -415,4 +415,30 @@ def diagnose(F, frame, params):
     return out
 
 
+
+def smallest_acoustic(F: np.ndarray, frame: np.ndarray, params: np.ndarray, directions: np.ndarray,
+                      components=(0, 1, 2), h: float = 1e-7) -> np.ndarray:
+    """(n,) smallest eigenvalue [MPa] of the reference acoustic tensor Q_ik(N) = dP_iJ/dF_kL N_J N_L over the unit
+    directions N (m, 3) at each of the deformation gradients F (n, 3, 3); negative where the law has lost strong
+    ellipticity (a plane wave of that direction has no stiffness: bands that the mesh alone resolves).
+
+    dP/dF by central differences of ``point`` (step h; exact to O(h^2) away from the fibres' kink at zero strain).
+    ``components`` keeps the polarisations i, k of a constrained model: (0, 2) for a plane-strain slice in x-z,
+    whose directions N then lie in that plane. A diagnostic (post-processing, studies), not an engine kernel."""
+    state, P, A = np.zeros(0), np.zeros((3, 3)), np.zeros((3, 3, 3, 3))
+    keep = np.asarray(components)
+    out = np.empty(len(F))
+    for e, Fe in enumerate(np.asarray(F, float)):
+        for k in range(3):
+            for L in range(3):
+                dF = np.zeros((3, 3))
+                dF[k, L] = h
+                point(Fe + dF, frame, params, state, P)
+                plus = P.copy()
+                point(Fe - dF, frame, params, state, P)
+                A[:, :, k, L] = (plus - P) / (2.0 * h)
+        Q = np.einsum("iJkL,nJ,nL->nik", A, directions, directions)[:, keep][:, :, keep]
+        out[e] = np.linalg.eigvalsh(0.5 * (Q + Q.transpose(0, 2, 1))).min()
+    return out
+
 register_material(MaterialKind("fabric_hyper", pack, evaluate, point, 0, DIAGNOSTICS, diagnose))
