@@ -178,17 +178,27 @@ def onset(deck: Path, out: Path, sets: dict | None = None, modes: int = 4, dense
     stroke = float(np.abs(sp_.x_held - X.ravel()[sp_.held]).max())
     log, states = [], []
 
+    frame = np.asarray(g.frame)[0]  # (the decks' uniform fibre frame, rows f1, f2, f3)
+
     def lost(x):
+        """(elements past strong ellipticity (n_el,) bool, their median warp strain, median transverse shear [deg])"""
         F = np.einsum("eai,eaj->eij", x[conn], dNdX)
-        return smallest_acoustic(F, np.asarray(g.frame)[0], np.asarray(g.params)[0], N, components=(0, 2)) < 0.0
+        bad = smallest_acoustic(F, frame, np.asarray(g.params)[0], N, components=(0, 2)) < 0.0
+        C = np.einsum("ia,eki,ekj,jb->eab", frame.T, F, F, frame.T)  # C in the fibre frame
+        warp = 0.5 * np.log(C[:, 0, 0])
+        shear = np.degrees(np.arcsin(C[:, 0, 2] / np.sqrt(C[:, 0, 0] * C[:, 2, 2])))
+        med = (float(np.median(warp[bad])), float(np.median(np.abs(shear[bad])))) if bad.any() else (None, None)
+        return bad, *med
 
     def watch(lam, x):
         K = sp_.tangent(x, S, colours, h)
-        n_neg, bad = static.inertia(K), lost(x)
+        n_neg, (bad, warp, shear) = static.inertia(K), lost(x)
         log.append({"load_factor": lam, "stroke": lam * stroke, "negative_eigenvalues": n_neg,
-                    "past_ellipticity": int(bad.sum())})
+                    "past_ellipticity": int(bad.sum()), "their_median_warp_strain": warp,
+                    "their_median_transverse_shear_deg": shear})
         print(f"stroke {lam * stroke:6.2f} mm: {n_neg} negative eigenvalues, {int(bad.sum())} of {len(conn)} "
-              f"elements past strong ellipticity", flush=True)
+              f"elements past strong ellipticity" + (f" (median warp strain {warp:.4f}, transverse shear "
+                                                     f"{shear:.1f} deg)" if bad.any() else ""), flush=True)
         states.append((x.copy(), bad, K))
         del states[:-2]
         if n_neg:
