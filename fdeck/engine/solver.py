@@ -266,13 +266,19 @@ def _run(problem, sink: Sink, should_stop, resume) -> Result:
 
     def stable_dt(safety):
         group_dt = [g.stable_dt() for g in groups]
-        effect_dt = min([e.stable_dt() for e in effects], default=math.inf)
-        if sms is not None and sms.active and sms.track_dt is not None:
-            # selective mass that keeps the target step, never above what the effects (contact) allow
-            keep = min(sms.track_dt, safety * effect_dt)
-            if safety * min(group_dt) < keep * (1.0 - 1e-9):
-                group_dt = sms.track(group_dt, keep, safety, v, v_old)
-        return safety * min(group_dt + [effect_dt])
+        if sms is None or not sms.active or sms.track_dt is None:
+            return safety * min(group_dt + [min([e.stable_dt() for e in effects], default=math.inf)])
+        # selective mass that keeps the target step, never above what the other effects (contact) allow, nor above
+        # what the hinges of fibre bending allow (they turn whole elements, which the added mass does not slow)
+        effect_dt = min([e.stable_dt() for e in effects if e not in sms.stiff], default=math.inf)
+        stiff_dt = min([e.stable_dt() for e in sms.stiff], default=math.inf)  # hinges and continuum together
+        wb2 = sms.rotation_omega2()  # per group (n_el,) [1/s^2] or None, the hinges' stiffness of that stable_dt
+        hinge_dt = min([2.0 / math.sqrt(w.max()) for w in wb2 if w is not None and w.max() > 0.0], default=math.inf)
+        keep = min(sms.track_dt, safety * effect_dt, safety * sms.reach * hinge_dt)
+        if safety * min(group_dt + [stiff_dt]) < keep * (1.0 - 1e-9):
+            group_dt = sms.track(group_dt, keep, safety, v, v_old, wb2)
+            stiff_dt = min([e.stable_dt() for e in sms.stiff], default=math.inf)  # with the new mass
+        return safety * min(group_dt + [effect_dt, stiff_dt])
 
     def state(k) -> dict:
         """Everything the loop needs to continue from the end of the current cycle (a checkpoint's engine part)."""

@@ -483,6 +483,7 @@ class FibreBendingEffect(Effect):
         self._mass, self._mass_rho = None, None
         self.group_index = None  # index of ``group`` in the problem's groups (set by ``build``; None for a view)
         self._beta = None  # (n_el,) selective mass factors of the current step, or None
+        self._trans = None  # (n_el,) translational density of the current step under selective mass, or None
 
     def coupled_elements(self) -> tuple[np.ndarray, np.ndarray]:
         """(left, right) (n_h,) element indices of each hinge: a hinge's forces depend on the nodes of its two
@@ -512,15 +513,18 @@ class FibreBendingEffect(Effect):
         if plan.selective is not None and self.group_index is None:
             raise RuntimeError("selective mass scaling with fibre bending on subcycling blocks")  # refused earlier
         self._beta = None if plan.selective is None else plan.selective[self.group_index]
+        # the translational density of the step: fixed while selective mass is tracked (``track_target`` raises
+        # the group's density on the deformation modes only, in place)
+        self._trans = None if plan.selective is None else plan.rho[self.group_index] / (1.0 + self._beta)
         self._mass_rho = None
 
     def nodal_mass(self) -> np.ndarray:
         """(n_node,) lumped mass of this group's elements [t] with the group's current density (mass scaling
         included; under selective scaling its translational part, rho / (1 + beta)); nodes shared with other groups
         get only this group's share, which errs on the safe side."""
-        if self._mass_rho is not self.group.rho:
-            rho = self.group.rho if self._beta is None else self.group.rho / (1.0 + self._beta)
-            self._mass, self._mass_rho = self._lump(self.group.mass(rho)), self.group.rho
+        rho = self.group.rho if self._trans is None else self._trans
+        if self._mass_rho is not rho:
+            self._mass, self._mass_rho = self._lump(self.group.mass(rho)), rho
         return self._mass
 
     def _lump(self, m_el: np.ndarray) -> np.ndarray:
@@ -541,6 +545,11 @@ class FibreBendingEffect(Effect):
     def element_dt(self) -> np.ndarray:
         """(n_el,) element steps [s], bending and continuum together, from the last ``stable_dt``."""
         return self.dt_e
+
+    def rotation_omega2(self) -> np.ndarray:
+        """(n_el,) the hinges' own squared frequency omega_b^2 [1/s^2] per element (the largest R / m of its nodes)
+        at the last ``stable_dt``: what selective mass tracking cannot slow (``selective_mass``)."""
+        return (self.R / self.nodal_mass())[self.conn].max(axis=1)
 
     def rest_dt(self, rho: np.ndarray) -> np.ndarray:
         """(n_el,) element steps [s] at rest, bending and continuum together, with the group's densities rho

@@ -12,6 +12,12 @@ element steps each cycle; elements below the target get their density (and so be
 ``HEADROOM``, the conjugate-gradient preconditioner follows, and the kinetic energy the new mass carries at that
 moment, 1/2 dc_e |(I - P_e) v_e|^2, is booked as work (``mass_tracking_work``): the balance stays closed. Only the
 deformation modes get the mass, so momentum and translational inertia stay those of the step's lumped mass.
+
+With fibre bending the hinges turn whole elements, which the added mass does not slow: an element's step is
+2 / sqrt(omega_g^2 + omega_b^2) with omega_b^2 the hinges' (against the translational mass) and omega_g^2 the
+continuum's, which the mass divides. Tracking then keeps at most ``REACH`` of the hinges' own current step (the
+engine caps the target there), and gives each element the continuum step 2 / sqrt(omega_t^2 - omega_b^2) that
+brings the sum to the target's omega_t (``compile.problem.selective_density`` does the same at rest).
 """
 
 from __future__ import annotations
@@ -31,6 +37,11 @@ TOLERANCE = 1e-9
 HEADROOM = 1.05
 """A tracked element's step is raised to 1.05 x the target: it then stiffens by about 10 % before it needs mass
 again, so the re-scaling (O(elements) array work) runs every few hundred cycles rather than every cycle."""
+
+REACH = 0.8
+"""With fibre bending, the tracked step is kept at most at 0.8 x the hinges' own step: an element whose hinges alone
+allow omega_b then needs its continuum slowed to omega_t sqrt(1 - 0.64) = 0.6 omega_t (beta ~ 3 (omega_g /
+omega_t)^2), where a target at the hinges' bound itself would need an infinite mass."""
 
 
 class SelectiveMassEffect(Effect):
@@ -87,21 +98,39 @@ class SelectiveMassEffect(Effect):
             values += (self.tracking_work, 100.0 * self.tracked_mass / self.physical, float(self.tracked.sum()))
         return values
 
-    def track(self, group_dt: list[float], keep: float, safety: float, v: np.ndarray, v_old: np.ndarray
-              ) -> list[float]:
+    reach = REACH  # (the engine's cap on the target with hinges)
+
+    def rotation_omega2(self) -> list:
+        """Per group, the hinges' squared frequencies omega_b^2 (n_el,) [1/s^2] on element rotations at their last
+        ``stable_dt`` (summed over the effects on that group), or None where no such effect acts."""
+        out = [None] * len(self.groups)
+        for e in self.stiff:
+            i = next(k for k, g in enumerate(self.groups) if g is e.group)
+            out[i] = e.rotation_omega2() if out[i] is None else out[i] + e.rotation_omega2()
+        return out
+
+    def track(self, group_dt: list[float], keep: float, safety: float, v: np.ndarray, v_old: np.ndarray,
+              rotation_omega2: list | None = None) -> list[float]:
         """Keep the step at ``keep`` [s] (``track_dt``, or less where an effect such as contact bounds the step
-        anyway: mass beyond that would slow the blank and buy nothing): every element whose step (dt_e, as the
-        group computed it this cycle, times ``safety``) is below it gets the density rho_e (HEADROOM keep /
-        (safety dt_e))^2, i.e. more mass on its deformation modes only (translational mass unchanged). Returns the
-        groups' new smallest steps [s]."""
+        anyway: mass beyond that would slow the blank and buy nothing): every element whose continuum step (dt_e,
+        as the group computed it this cycle) is below its target gets the density rho_e (HEADROOM target_e /
+        dt_e)^2, i.e. more mass on its deformation modes only (translational mass unchanged). The target is
+        keep / safety, or with the hinges' omega_b^2 of ``rotation_omega2`` (per group, (n_el,) or None) the
+        continuum step 2 / sqrt(omega_t^2 - omega_b^2) that brings the element to keep / safety (the engine keeps
+        omega_t above omega_b). Returns the groups' new smallest continuum steps [s]."""
         target = keep / safety  # element step to reach [s]
-        below = target * (1.0 - TOLERANCE)
         out = list(group_dt)
         for i, g in enumerate(self.groups):
-            if not out[i] < below:
-                continue
+            wb2 = None if rotation_omega2 is None else rotation_omega2[i]
+            if wb2 is None:
+                goal = target
+            else:  # the continuum's share of the target (hinges' frequencies add in squares, module docstring)
+                goal = 2.0 / np.sqrt((2.0 / target) ** 2 - wb2)
+            below = goal * (1.0 - TOLERANCE)
             low = np.flatnonzero(g.dt_e < below)
-            factor = (HEADROOM * target / g.dt_e[low]) ** 2
+            if not len(low):
+                continue
+            factor = (HEADROOM * (goal if wb2 is None else goal[low]) / g.dt_e[low]) ** 2
             drho = np.zeros_like(g.rho)
             drho[low] = g.rho[low] * (factor - 1.0)
             g.rho[low] += drho[low]  # the group's own array (``set_density`` copies the plan's)
@@ -127,6 +156,8 @@ class SelectiveMassEffect(Effect):
         tol, cap = plan.cg
         tracked = [i for i, t in enumerate(self.targets) if t is not None]
         keep = f"; the target is kept during steps {tracked} (more mass as elements stiffen)" if tracked else ""
+        if tracked and self.stiff:
+            keep += f", at most {REACH:g} of the step the hinges of {', '.join(e.name for e in self.stiff)} allow"
         return (f"selective mass scaling (steps {steps}): translational mass as without it, added mass "
                 f"{100 * plan.added_mass:.3g} % of the physical (uniform and selective) on {int((beta > 0).sum())} "
                 f"of {len(beta)} elements "
@@ -152,12 +183,6 @@ def build(cards: list, ctx) -> SelectiveMassEffect | None:
                 problems.append((path, f"selective mass scaling is for hexahedra; group {g.name} holds "
                                  f"{g.cell_type} elements"))
     own = [e for e in ctx.effects if hasattr(e, "own_omega2")]  # stiffness on element rotations (fibre bending)
-    for i, on in enumerate(selective):
-        if on and own and cards[i].track_target is not False:
-            problems.append((("steps", i, "mass_scaling", "track_target"), "keeping the selective target during "
-                             f"the step is not available with {', '.join(e.name for e in own)}: its stiffness on "
-                             "element rotations sets the step too, and tracking adds mass to the elements' "
-                             "deformation modes only; leave `track_target` out (the target is met at rest)"))
     if problems:
         raise CompileError(problems)
     targets = [c.tracked_dt if on else None for c, on in zip(cards, selective)]
