@@ -431,14 +431,16 @@ def gather_rows(rows, ptr, slots, out):
 
 
 @njit_parallel
-def element_steps(conn, R, mass, dt_group, dt_e):
-    """dt_e (n_el,) = 2 / sqrt(omega_b^2 + (2 / dt_group)^2), omega_b^2 = max over the element's nodes of R / m."""
+def element_steps(conn, R, mass, dt_group, dt_e, wb_e):
+    """dt_e (n_el,) = 2 / sqrt(omega_b^2 + (2 / dt_group)^2), omega_b^2 = max over the element's nodes of R / m,
+    itself kept in wb_e (n_el,) [1/s^2]."""
     for e in prange(conn.shape[0]):
         wb = 0.0
         for n in range(8):
             node = conn[e, n]
             wb = max(wb, R[node] / mass[node])
         wg = 2.0 / dt_group[e]
+        wb_e[e] = wb
         dt_e[e] = 2.0 / math.sqrt(wb + wg * wg)
 
 
@@ -472,7 +474,7 @@ class FibreBendingEffect(Effect):
         self.chi, self.moment, self.e_h = np.zeros((n_h, 2)), np.zeros((n_h, 2)), np.zeros(n_h)
         self.adj, self.dchi, self.kS = np.zeros((n_h, 2, 2, 2, 3)), np.zeros((n_h, 2, 2, 2)), np.zeros((n_h, 2))
         self.fe, self.rows = np.zeros((n_el, 8, 3)), np.zeros((n_el, 8))
-        self.R, self.dt_e = np.zeros(len(X)), np.zeros(n_el)
+        self.R, self.dt_e, self.wb_e = np.zeros(len(X)), np.zeros(n_el), np.zeros(n_el)
         self.ptr, self.slots = node_slots(self.conn, len(X))
         self.chi0 = np.zeros((n_h, 2))
         self._evaluate(X)
@@ -539,7 +541,7 @@ class FibreBendingEffect(Effect):
         element_rows(self.G, self.el_hinge, self.dchi, self.kS, self.rows)
         gather_rows(self.rows, self.ptr, self.slots, self.R)
         self.group.stable_dt()  # refreshes group.dt_e from the current moduli (independent of call order)
-        element_steps(self.conn, self.R, self.nodal_mass(), self.group.dt_e, self.dt_e)
+        element_steps(self.conn, self.R, self.nodal_mass(), self.group.dt_e, self.dt_e, self.wb_e)
         return float(self.dt_e.min())
 
     def element_dt(self) -> np.ndarray:
@@ -549,7 +551,7 @@ class FibreBendingEffect(Effect):
     def rotation_omega2(self) -> np.ndarray:
         """(n_el,) the hinges' own squared frequency omega_b^2 [1/s^2] per element (the largest R / m of its nodes)
         at the last ``stable_dt``: what selective mass tracking cannot slow (``selective_mass``)."""
-        return (self.R / self.nodal_mass())[self.conn].max(axis=1)
+        return self.wb_e
 
     def rest_dt(self, rho: np.ndarray) -> np.ndarray:
         """(n_el,) element steps [s] at rest, bending and continuum together, with the group's densities rho

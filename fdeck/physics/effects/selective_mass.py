@@ -105,7 +105,7 @@ class SelectiveMassEffect(Effect):
         ``stable_dt`` (summed over the effects on that group), or None where no such effect acts."""
         out = [None] * len(self.groups)
         for e in self.stiff:
-            i = next(k for k, g in enumerate(self.groups) if g is e.group)
+            i = e.group_index
             out[i] = e.rotation_omega2() if out[i] is None else out[i] + e.rotation_omega2()
         return out
 
@@ -123,14 +123,17 @@ class SelectiveMassEffect(Effect):
         for i, g in enumerate(self.groups):
             wb2 = None if rotation_omega2 is None else rotation_omega2[i]
             if wb2 is None:
-                goal = target
-            else:  # the continuum's share of the target (hinges' frequencies add in squares, module docstring)
+                goal, ample = target, HEADROOM * target
+            else:  # the continuum's share of the target (hinges' frequencies add in squares, module docstring);
+                # the headroom on the element's whole step: at the engine's cap (wb2 <= REACH^2 omega_t^2) its
+                # continuum still has (1 / HEADROOM^2 - REACH^2) omega_t^2 = 0.27 omega_t^2 left
                 goal = 2.0 / np.sqrt((2.0 / target) ** 2 - wb2)
+                ample = 2.0 / np.sqrt((2.0 / (HEADROOM * target)) ** 2 - wb2)
             below = goal * (1.0 - TOLERANCE)
             low = np.flatnonzero(g.dt_e < below)
             if not len(low):
                 continue
-            factor = (HEADROOM * (goal if wb2 is None else goal[low]) / g.dt_e[low]) ** 2
+            factor = ((ample if wb2 is None else ample[low]) / g.dt_e[low]) ** 2
             drho = np.zeros_like(g.rho)
             drho[low] = g.rho[low] * (factor - 1.0)
             g.rho[low] += drho[low]  # the group's own array (``set_density`` copies the plan's)
