@@ -270,7 +270,9 @@ def _run(problem, sink: Sink, should_stop, resume) -> Result:
             return safety * min(group_dt + [min([e.stable_dt() for e in effects], default=math.inf)])
         # selective mass that keeps the target step, never above what the other effects (contact) allow, nor above
         # what the hinges of fibre bending allow (they turn whole elements, which the added mass does not slow)
-        effect_dt = min([e.stable_dt() for e in effects if e not in sms.stiff], default=math.inf)
+        # effects whose step is a share of the elements' own (bulk viscosity) follow the added mass: not a cap
+        follow = [e for e in effects if getattr(e, "follows_element_steps", False)]
+        effect_dt = min([e.stable_dt() for e in effects if e not in sms.stiff and e not in follow], default=math.inf)
         stiff_dt = min([e.stable_dt() for e in sms.stiff], default=math.inf)  # hinges and continuum together
         wb2 = sms.rotation_omega2()  # per group (n_el,) [1/s^2] or None, the hinges' stiffness of that stable_dt
         hinge_dt = min([2.0 / math.sqrt(w.max()) for w in wb2 if w is not None and w.max() > 0.0], default=math.inf)
@@ -278,7 +280,8 @@ def _run(problem, sink: Sink, should_stop, resume) -> Result:
         if safety * min(group_dt + [stiff_dt]) < keep * (1.0 - 1e-9):
             group_dt = sms.track(group_dt, keep, safety, v, v_old, wb2)
             stiff_dt = min([e.stable_dt() for e in sms.stiff], default=math.inf)  # with the new mass
-        return safety * min(group_dt + [effect_dt, stiff_dt])
+        follow_dt = min([e.stable_dt() for e in follow], default=math.inf)  # from the elements' steps as they are now
+        return safety * min(group_dt + [effect_dt, stiff_dt, follow_dt])
 
     def state(k) -> dict:
         """Everything the loop needs to continue from the end of the current cycle (a checkpoint's engine part)."""

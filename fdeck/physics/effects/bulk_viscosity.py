@@ -88,6 +88,8 @@ def viscous_forces(x, v, conn, b, V0, L0, rho, dt_e, b1, b2, fe, power, xi):
 class BulkViscosity(Effect):
     """Bulk viscosity on the solid groups; coefficients (b1, b2) per step, zero in steps that do not ask for it."""
 
+    follows_element_steps = True  # its step is a share of the elements' own: mass tracking raises both (solver)
+
     name = "bulk viscosity"
     forces = "damping"
 
