@@ -31,7 +31,8 @@ class MassScaling(Card):
         "element whose step "
         "then falls below it (fibres stiffening in tension, a compacted ply) gets more added mass on its deformation "
         "modes at once, 5 % above what it needs; never for a step above what the effects allow anyway (contact "
-        "penalty springs). The kinetic energy that mass brings is booked as work "
+        "penalty springs), nor above 0.8 of the step that fibre bending's hinges allow (they turn whole elements, "
+        "which added mass does not slow). The kinetic energy that mass brings is booked as work "
         "(`mass_tracking_work`), the added mass is a history column (`tracked_added_mass`, per cent of the "
         "physical mass). LS-DYNA adds conventional mass during a run in the same way (negative DT2MS).")
     cg_tolerance: float = Field(1e-4, gt=0, lt=1, description="Selective scaling: the conjugate-gradient solve "
