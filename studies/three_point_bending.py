@@ -145,10 +145,12 @@ def onset(deck: Path, out: Path, sets: dict | None = None, modes: int = 4, dense
     (``static.inertia``) and the elements whose law has lost strong ellipticity in the x-z slice at their centre F
     (``fabric_hyper.smallest_acoustic``, 72 directions, x-z polarisations: the slice holds y). Stops at the first
     increment with a negative eigenvalue; writes out/onset.json (per increment: load factor, stroke [mm],
-    negative eigenvalues, elements past ellipticity; at the onset the lowest eigenvalues, dense) and out/onset.png
+    negative eigenvalues (-1 where the factorisation cannot tell), elements past ellipticity; at the onset the
+    lowest eigenvalues, dense; without an onset whether the solve reached the end) and, at an onset, out/onset.png
     (elements past ellipticity at the last stable and the first unstable increment; the lowest mode drawn on the
     latter, largest entry 3 mm). ``sets``: {deck path: value} applied first. The eigenvalues are dense, so only
-    up to ``dense_limit`` free dofs (the 1 mm slice has 6 464)."""
+    up to ``dense_limit`` free dofs (the 1 mm slice has about 6 400). One element group with one fibre frame and
+    one parameter set (the three-point-bending decks), checked."""
     import math
 
     import numpy as np
@@ -171,6 +173,8 @@ def onset(deck: Path, out: Path, sets: dict | None = None, modes: int = 4, dense
     S = sp_.dof_pattern(sp_.pattern())
     colours, h = static.StaticProblem.colour(S), 1e-11 * sp_.size
     g = problem.groups[0]
+    if len(problem.groups) != 1 or not (np.allclose(g.frame, g.frame[0]) and np.allclose(g.params, g.params[0])):
+        raise SystemExit("--onset: one element group with a uniform fibre frame and material expected")
     conn, X = np.asarray(g.conn), sp_.X
     dxi = shape_gradients_local(np.zeros((1, 3)))[0]
     dNdX = np.einsum("aj,eji->eai", dxi, np.linalg.inv(np.einsum("eai,aj->eij", X[conn], dxi)))
@@ -192,7 +196,11 @@ def onset(deck: Path, out: Path, sets: dict | None = None, modes: int = 4, dense
 
     def watch(lam, x):
         K = sp_.tangent(x, S, colours, h)
-        n_neg, (bad, warp, shear) = static.inertia(K), lost(x)
+        try:
+            n_neg = static.inertia(K)
+        except (ValueError, RuntimeError):  # off-diagonal pivots, a singular tangent: stability unknown
+            n_neg = -1
+        bad, warp, shear = lost(x)
         log.append({"load_factor": lam, "stroke": lam * stroke, "negative_eigenvalues": n_neg,
                     "past_ellipticity": int(bad.sum()), "their_median_warp_strain": warp,
                     "their_median_transverse_shear_deg": shear})
@@ -201,13 +209,13 @@ def onset(deck: Path, out: Path, sets: dict | None = None, modes: int = 4, dense
                                                      f"{shear:.1f} deg)" if bad.any() else ""), flush=True)
         states.append((x.copy(), bad, K))
         del states[:-2]
-        if n_neg:
+        if n_neg > 0:
             raise _Unstable
 
     result = {"deck": str(deck), "set": sets or {}, "elements": len(conn), "increments": log}
     try:
         r = static.solve(problem, max_iterations=30, on_increment=watch)
-        result["stopped_at_load_factor"] = r.load_factor  # (1.0: the whole stroke stable)
+        result["converged"], result["stopped_at_load_factor"] = r.converged, r.load_factor  # stable throughout
     except _Unstable:
         x, bad, K = states[-1]
         mode = None
@@ -224,8 +232,8 @@ def onset(deck: Path, out: Path, sets: dict | None = None, modes: int = 4, dense
 
 
 def _draw_onset(states, conn, mode, log, png: Path) -> None:
-    """Two panels (y = 0 faces): elements past ellipticity (red) at the last two increments, the lowest mode on the
-    last."""
+    """One panel per increment kept (the last two, y = 0 faces): elements past ellipticity (red), the lowest mode
+    on the last when it is known."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -240,7 +248,7 @@ def _draw_onset(states, conn, mode, log, png: Path) -> None:
                                          clim=(0, 1), edgecolors="0.6", linewidths=0.1))
         title = (f"stroke {rec['stroke']:.1f} mm: {rec['past_ellipticity']} elements past strong ellipticity (red), "
                  f"{rec['negative_eigenvalues']} negative eigenvalues")
-        if rec is log[-1] and rec["negative_eigenvalues"] and mode is not None:
+        if rec is log[-1] and rec["negative_eigenvalues"] > 0 and mode is not None:
             y = x + 3.0 * mode / np.abs(mode).max()
             for f in y[faces]:
                 ax.plot(f[[0, 1, 2, 3, 0], 0], f[[0, 1, 2, 3, 0], 2], lw=0.3, color="k")

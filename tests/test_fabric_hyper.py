@@ -458,9 +458,8 @@ def test_compressed_warp_loses_ellipticity_where_its_stress_reaches_the_shear_ta
         assert (smallest > 0) == (scale < 1.0), (scale, smallest)
 
 
-
 def test_interlock_warp_kinks_out_of_plane_where_its_stress_reaches_the_transverse_shear_tangent():
-    """Requirement (why the three-point bending of the interlock has no mesh-converged answer; README): in a
+    """Requirement (the law property behind the README's account of the interlock's three-point bending): in a
     plane-strain x-z slice with the warp along x, the stiffness against the warp turning out of plane, Q_33(N = f1)
     at F = diag(lam, 1, 1), is (psi_w'(e) + 2 K_t) / lam^2: the warp's compressive psi_w' = 2 ratio K_1 e (e =
     ln lam < 0) through d2e/dF31^2 = 1/lam^2, the transverse shear psi = K_t t1^2 through dt1/dF31 = 1/lam
@@ -470,8 +469,9 @@ def test_interlock_warp_kinks_out_of_plane_where_its_stress_reaches_the_transver
     tangent (Rosen's kinking condition, out of plane). Checked: (a) FD Q_33 equals the closed form (1e-5 relative,
     2e-6 MPa absolute: central differences, h = 1e-7, far from the fibres' kink at e = 0); (b)
     ``fabric_hyper.smallest_acoustic`` over 181 directions in the x-z plane, x-z polarisations only, is positive at
-    0.97 e* and 0.5 e* and negative at 1.03 e* and 1.5 e* (the onset within 3 %: no other direction or mode is
-    softer)."""
+    0.97 e* and 0.5 e* (no other direction or mode loses ellipticity first; it is softer elsewhere, 0.55 against
+    2.08 MPa at 0.5 e*) and negative at 1.03 e* and 1.5 e* (this half follows from (a): N = f1 is among the
+    directions and Q_33 bounds the smallest eigenvalue)."""
     c = card("interlock")
     p = fh.pack(c)
     k1, kt, ratio = c.warp.coefficients[1], c.transverse_shear_warp.K, c.compression_ratio
@@ -486,6 +486,7 @@ def test_interlock_warp_kinks_out_of_plane_where_its_stress_reaches_the_transver
         assert q33 == pytest.approx((2 * ratio * k1 * math.log(lam) + 2 * kt) / lam**2, rel=1e-5, abs=2e-6)
         smallest = fh.smallest_acoustic(F[None], frame, p, N, components=(0, 2))[0]
         assert (smallest > 0) == (scale < 1.0), (scale, smallest)
+
 
 def modulus_cases():
     rng = np.random.default_rng(7)

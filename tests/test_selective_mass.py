@@ -449,7 +449,6 @@ def test_tracking_keeps_the_step_as_fibres_stiffen():
     assert trk["kinetic_energy"][-1] < 2e-4 * trk["internal_energy"][-1]
 
 
-
 def hinged_warp_strip(D1: float, mass_scaling: dict | None, duration: float = 0.01) -> dict:
     """``warp_strip`` with fibre bending (D1 [N mm] on both families, the strip's 2.54 mm thickness): pulled, the
     hinges stay unbent, so they change the answer by nothing but bound the step: their own step at rest (times
@@ -464,14 +463,14 @@ def hinged_warp_strip(D1: float, mass_scaling: dict | None, duration: float = 0.
 def test_tracking_with_fibre_bending_keeps_the_target_or_the_hinges_reach(D1):
     """Requirement: ``track_target`` with fibre bending keeps the step at the target where the hinges allow it, and
     at ``REACH`` (0.8) of the hinges' own current step where they do not (added mass does not slow the hinges,
-    which turn whole elements); the answer and the balance are those of the plain tracking test (same tolerances and reasons: 1.5 % from the unscaled run,
-    both slow pulls; balance within 1e-3 of the external work).
+    which turn whole elements); the answer and the balance are those of the plain tracking test (same tolerances
+    and reasons: 1.5 % from the unscaled run, both slow pulls; balance within 1e-3 of the external work).
 
-    D1 = 10: the hinges allow 8x the target; every step but the last at or above the target to round-off, where
-    the run without tracking falls below 0.6 of it. D1 = 1000: the hinges alone allow 1.04x the target, so the
-    step is kept at 0.8 x their current step (to 1e-3: the cap here is the end's, the engine's each cycle's)
-    and stays below the target (the cap binds), where the run
-    without tracking falls below that cap. Measured 2026-11-27: 604 / 651 cycles tracked against 726 / 652
+    D1 = 10: the hinges alone allow 10x the target (8x under the 0.8 cap); every step but the last at or above the
+    target to round-off, where the run without tracking falls below 0.6 of it. D1 = 1000: the hinges alone allow
+    1.04x the target, so the step is kept at 0.8 x their current step (to 1e-3: the cap here is the end's, the
+    engine's each cycle's) and stays below the target (the cap binds), where the run without tracking falls below
+    that cap. Measured 2026-11-27: 604 / 651 cycles tracked against 726 / 652
     without; reaction 41.50 / 41.53 N against 41.79 / 41.78 unscaled."""
     from fdeck.physics.effects.selective_mass import REACH
 
@@ -524,6 +523,7 @@ def test_tracking_with_bulk_viscosity_keeps_the_viscous_share_of_the_target():
     assert np.abs(trk["energy_balance_error"][:-1]).max() <= 1e-3 * trk["external_work"][-1]
     for name, col in (("reaction", "reaction_xmax_x"), ("internal energy", "internal_energy")):
         assert trk[col][-1] == pytest.approx(plain[col][-1], rel=0.015), name
+
 
 @pytest.mark.parametrize("D1, at", [(None, 200), (1000.0, 370)])
 def test_tracking_restart_is_bitwise(D1, at):

@@ -171,8 +171,8 @@ def test_on_increment_sees_every_increment_and_the_column_turn_unstable_at_euler
     called once per converged increment with its load factor and positions, in order, the last one the answer.
     The straight clamped-clamped column pushed to 1.1 e1 (plain continuation stays straight, see above) then has
     no negative eigenvalue at the increments below e1 and one at those above: the last stable and the first
-    unstable increment bracket the first critical strain within the mesh's 1 % (measured once: the hexahedral
-    column's e1 within 1 % of the closed form; see the count test above)."""
+    unstable increment bracket the first critical strain, with the mesh's own e1 (within 1 % of the closed form,
+    the count test above) inside the bracket (0.77-1.1 e1 at the solver's increments today)."""
     L, h, E, G = 40.0, 1.0, 1000.0, 500.0
     EI, A = E * h ** 4 / 12.0, h * h
     P = 4.0 * math.pi ** 2 * EI / L ** 2
@@ -190,4 +190,4 @@ def test_on_increment_sees_every_increment_and_the_column_turn_unstable_at_euler
     stable = [s for s, n in counts if n == 0]
     unstable = [s for s, n in counts if n == 1]
     assert stable and unstable and max(stable) < min(unstable), counts
-    assert max(stable) < 1.01 and min(unstable) > 0.99, counts
+    assert max(stable) <= 0.99 and min(unstable) >= 1.01, counts

@@ -287,7 +287,8 @@ def solve(problem, first: float = 0.1, min_increment: float = 1e-4, max_iteratio
     at the answer (-1 where the factorisation cannot tell; no switch is tried then).
 
     ``on_increment(lam, x)``, when given, is called after every converged increment with its load factor and
-    positions (n_node, 3) [mm] (a study watching the path: ``studies/three_point_bending.py --onset``).
+    positions (n_node, 3) [mm], the solver's own array: read it, do not modify it (a study watching the path:
+    ``studies/three_point_bending.py --onset``); an exception it raises ends the solve.
     """
     t0 = time.perf_counter()
     sp_ = StaticProblem(problem)

@@ -415,7 +415,6 @@ def diagnose(F, frame, params):
     return out
 
 
-
 def smallest_acoustic(F: np.ndarray, frame: np.ndarray, params: np.ndarray, directions: np.ndarray,
                       components=(0, 1, 2), h: float = 1e-7) -> np.ndarray:
     """(n,) smallest eigenvalue [MPa] of the reference acoustic tensor Q_ik(N) = dP_iJ/dF_kL N_J N_L over the unit
@@ -440,5 +439,6 @@ def smallest_acoustic(F: np.ndarray, frame: np.ndarray, params: np.ndarray, dire
         Q = np.einsum("iJkL,nJ,nL->nik", A, directions, directions)[:, keep][:, :, keep]
         out[e] = np.linalg.eigvalsh(0.5 * (Q + Q.transpose(0, 2, 1))).min()
     return out
+
 
 register_material(MaterialKind("fabric_hyper", pack, evaluate, point, 0, DIAGNOSTICS, diagnose))
