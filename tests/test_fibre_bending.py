@@ -405,6 +405,39 @@ def test_bad_cards_are_located_errors(tmp_path):
         assert any(f"bad.yaml:{line}" in row and message in row for row in text.splitlines()), (line, message, text)
 
 
+
+@pytest.mark.unit
+def test_one_effect_listed_twice_in_a_section_is_a_located_error(tmp_path):
+    """Requirement: two fibre_bending entries on one section (out of plane in one, in plane in the other) are refused
+    at the section's line, not run: each entry's stable step would count its own hinges only while the elements
+    feel both, so the step could exceed the stable one (found by a review, 2026-11-27). One entry with both laws
+    validates."""
+    from fdeck.deck.errors import DeckError
+    from fdeck.deck.read import read_deck
+
+    text = dedent("""\
+        mesh:
+          block: {size: [30, 12, 2], divisions: [10, 4, 2]}
+        materials:
+          m: {type: neo_hookean, density: 1.0e-9, youngs_modulus: 10.0, poisson_ratio: 0.3}
+        sections:
+          - material: m
+            effects:
+              - {type: fibre_bending, thickness: 2.0, warp: {D1: 5.0}}
+              - {type: fibre_bending, thickness: 2.0, in_plane: {warp: {D1: 5.0}}}
+        steps: [{duration: 1.0e-3}]
+        """)
+    path = tmp_path / "twice.yaml"
+    path.write_text(text)
+    with pytest.raises(DeckError) as exc:
+        read_deck(path)
+    (row,) = [str(p) for p in exc.value.problems]
+    assert "twice.yaml:6:" in row and "fibre_bending more than once" in row, row
+    one = text.replace("{D1: 5.0}}\n      - {type: fibre_bending, thickness: 2.0, in_plane", "{D1: 5.0}, in_plane")
+    assert one != text
+    path.write_text(one)
+    read_deck(path)
+
 @pytest.mark.unit
 def test_mesh_not_along_the_fibres_is_a_compile_error():
     """Requirement: fibres at 45 deg to the element edges are a CompileError at the effect's path, naming the

@@ -129,6 +129,18 @@ class Section(SectionBase):
             raise ValueError("`hourglass` applies to formulation `reduced` only")
         return self
 
+    @model_validator(mode="after")
+    def _each_effect_once(self):
+        # two entries of one effect would each bound the stable step by their own stiffness only, while the
+        # elements feel both (fibre_bending: give warp, weft and in_plane in one entry)
+        types = [e.type for e in getattr(self, "effects", [])]
+        twice = sorted({t for t in types if types.count(t) > 1})
+        if twice:
+            raise ValueError(f"`effects` lists {', '.join(twice)} more than once: give each effect one entry (for "
+                             "fibre_bending, warp, weft and in_plane together), as each entry's stable step counts "
+                             "its own stiffness only")
+        return self
+
 
 def formulation(value) -> str | None:
     """Discriminator of section cards: their `formulation`, `fbar` when omitted."""
