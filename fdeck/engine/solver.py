@@ -206,6 +206,10 @@ def _run(problem, sink: Sink, should_stop, resume) -> Result:
     constraints = [e for e in effects if e.constrains]
     movers = [e for e in effects if e.moves]
     sms = next((e for e in effects if getattr(e, "solves_mass", False)), None)  # selective mass scaling
+    # under mass tracking: effects whose step is a share of the elements' own (bulk viscosity) follow the added
+    # mass, the hinges of fibre bending (``sms.stiff``) cap it, the others (contact) bound it
+    follow = [e for e in effects if getattr(e, "follows_element_steps", False)]
+    bounding = [e for e in effects if e not in follow and (sms is None or e not in sms.stiff)]
     X = problem.X
     n = len(X)
     x, v = X.copy(), np.zeros((n, 3))
@@ -270,9 +274,7 @@ def _run(problem, sink: Sink, should_stop, resume) -> Result:
             return safety * min(group_dt + [min([e.stable_dt() for e in effects], default=math.inf)])
         # selective mass that keeps the target step, never above what the other effects (contact) allow, nor above
         # what the hinges of fibre bending allow (they turn whole elements, which the added mass does not slow)
-        # effects whose step is a share of the elements' own (bulk viscosity) follow the added mass: not a cap
-        follow = [e for e in effects if getattr(e, "follows_element_steps", False)]
-        effect_dt = min([e.stable_dt() for e in effects if e not in sms.stiff and e not in follow], default=math.inf)
+        effect_dt = min([e.stable_dt() for e in bounding], default=math.inf)
         stiff_dt = min([e.stable_dt() for e in sms.stiff], default=math.inf)  # hinges and continuum together
         wb2 = sms.rotation_omega2()  # per group (n_el,) [1/s^2] or None, the hinges' stiffness of that stable_dt
         hinge_dt = min([2.0 / math.sqrt(w.max()) for w in wb2 if w is not None and w.max() > 0.0], default=math.inf)
