@@ -1,6 +1,7 @@
 """Forming results as pictures: the formed blank seen from above (or from the side), coloured by a cell field.
 
     python studies/forming.py render RESULT_DIR OUT.png [--field shear_angle] [--view top|side] [--title T]
+                                     [--frame K] [--limits LO HI]  # frame K (default the last), colour range
     python studies/forming.py force RESULT_DIR... OUT.png [--tool punch]   # punch force against stroke
     python studies/forming.py paths PATH_NAME RESULT_DIR... OUT.png [--labels L...]  # shear along a path, runs compared
     python studies/forming.py retable DECK RESULT_DIR OUT_DIR [--set PATH=VALUE...] [--frame K]  # tables at a frame
@@ -8,10 +9,11 @@
     python studies/forming.py ellipticity RESULT_DIR FRAMES [--box B] [--preset 3weave]  # elements past the law's limit
     python studies/forming.py rows PATH_NAME RESULT_DIR... [--until S]  # element-to-element alternation along a path
 
-`render` reads the last blank frame of a run's `.pvd` (the blank is part 0; tools are other parts), draws every
-element as the polygon of its nodes projected on the view plane (their 2-D convex hull), farthest first, so the
-visible face of a hexahedral stack or of a shell wins, and colours it by the cell field (the fabric laws' shear
-angle in degrees by default). `force` plots the history's `tool_<tool>_force_z` against the tool's travel.
+`render` reads a blank frame of a run's `.pvd` (the last, or ``--frame K``; the blank is part 0, tools are other
+parts), draws every element as the polygon of its nodes projected on the view plane (their 2-D convex hull),
+farthest first, so the visible face of a hexahedral stack or of a shell wins, and colours it by the cell field (the
+fabric laws' shear angle in degrees by default; ``--limits LO HI`` fixes the colour range, to set two runs side by
+side). `force` plots the history's `tool_<tool>_force_z` against the tool's travel.
 `paths` plots the final shear angle along the path `PATH_NAME` (``output.paths``) of several runs (two meshes, say)
 and prints, for each run after the first, the largest difference from the first at the first run's sample points
 (linear interpolation in arc length; each run's angle is its elements' own, constant per element).
@@ -51,11 +53,6 @@ def blank_frames(result_dir) -> list[Path]:
     return [pvd.parent / d.get("file") for d in ET.parse(pvd).getroot().iter("DataSet") if d.get("part", "0") == "0"]
 
 
-def last_blank_frame(result_dir: Path) -> Path:
-    """Path of the blank's (part 0) last VTU frame listed in the run's .pvd."""
-    return blank_frames(result_dir)[-1]
-
-
 def hull(points: np.ndarray) -> np.ndarray:
     """Convex hull of 2-D points (k, 2), counter-clockwise (monotone chain)."""
     pts = sorted(set(map(tuple, np.round(points, 12))))
@@ -78,8 +75,9 @@ def hull(points: np.ndarray) -> np.ndarray:
 
 
 def render(result_dir, png, field: str = "shear_angle", view: str = "top", title: str | None = None,
-           limits: tuple[float, float] | None = None) -> dict:
-    """Draw the final blank coloured by ``field``; returns {min, max, mean} of the field over the drawn cells."""
+           limits: tuple[float, float] | None = None, frame: int = -1) -> dict:
+    """Draw the blank at frame ``frame`` (default the last) coloured by ``field``; returns {min, max, mean} of the
+    field over the drawn cells. ``limits``: the colour range (default the field's), to set two runs side by side."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -87,7 +85,7 @@ def render(result_dir, png, field: str = "shear_angle", view: str = "top", title
     import meshio
     from matplotlib.collections import PolyCollection
 
-    mesh = meshio.read(last_blank_frame(Path(result_dir)))
+    mesh = meshio.read(blank_frames(Path(result_dir))[frame])
     x = mesh.points + (mesh.point_data["displacement"] if "displacement" in mesh.point_data else 0.0)
     h, v, d = VIEWS[view]
     polys, values, depth = [], [], []
@@ -290,6 +288,8 @@ def main() -> None:
     r.add_argument("--field", default="shear_angle")
     r.add_argument("--view", default="top", choices=sorted(VIEWS))
     r.add_argument("--title")
+    r.add_argument("--frame", type=int, default=-1, help="blank frame index (0 = the initial one; default the last)")
+    r.add_argument("--limits", type=float, nargs=2, metavar=("LO", "HI"), help="colour range (default the field's)")
     f = sub.add_parser("force")
     f.add_argument("paths", nargs="+", help="result folders, then the PNG")
     f.add_argument("--tool", default="punch")
@@ -316,7 +316,7 @@ def main() -> None:
     ro.add_argument("--until", type=float, default=np.inf, help="arc length [mm] splitting the two figures")
     a = ap.parse_args()
     if a.cmd == "render":
-        print(render(a.result_dir, a.png, a.field, a.view, a.title))
+        print(render(a.result_dir, a.png, a.field, a.view, a.title, a.limits, a.frame))
     elif a.cmd == "mirror":
         for k, (big, p95) in enumerate(mirror(a.result_dir)):
             print(f"frame {k}: |gamma(x, y) + gamma(x, -y)| largest {big:.1f} deg, 95th percentile {p95:.1f} deg")

@@ -440,7 +440,8 @@ def _forming_script():
 
 def test_mirror_and_ellipticity_diagnostics_of_written_frames(tmp_path):
     """Requirement: ``studies/forming.py mirror`` measures how far a full model's shear field is from mirror symmetry
-    about y = 0, and ``ellipticity`` counts the elements whose law has lost strong ellipticity at their centre.
+    about y = 0, ``ellipticity`` counts the elements whose law has lost strong ellipticity at their centre, and
+    ``render`` draws the frame it is asked for.
     Frames written by fdeck's own series writer over a 3WEAVE block 20 x 20 x 2 mm (y from -10 to 10): an odd
     shear field gamma = 10 sign(y) (x + 1) deg is mirror-symmetric (0 to round-off), an even one of the same size
     differs by 2 |gamma| = 20 (x + 1) deg at most (closed forms). Displacements of a uniform warp compression: the
@@ -463,6 +464,12 @@ def test_mirror_and_ellipticity_diagnostics_of_written_frames(tmp_path):
     sym = forming.mirror(tmp_path)
     assert sym[0][0] < 1e-9 and sym[1][0] == pytest.approx(2 * np.abs(even).max(), rel=1e-9)
     assert forming.ellipticity(tmp_path, [0, 2, 3]) == [(0, 16), (16, 16), (0, 16)]
+    # `render --frame K` draws frame K (here the even field, read back exactly), the last frame by default; a
+    # colour range changes the picture, not the field
+    drawn = forming.render(tmp_path, tmp_path / "even.png", frame=1, limits=(-30.0, 30.0))
+    assert (drawn["min"], drawn["max"]) == (even.min(), even.max())
+    last = forming.render(tmp_path, tmp_path / "last.png")
+    assert (last["min"], last["max"]) == (odd.min(), odd.max()) and (tmp_path / "even.png").stat().st_size > 0
 
 
 def test_row_alternation_measure_against_closed_forms(tmp_path):
