@@ -149,7 +149,7 @@ def _nodal_forces(P, dN, w, fe, e):
     each term formed as before: the same bits either way. With one point (reduced) the node-by-node sums in
     registers stay (the point-by-point form measured 0.014 -> 0.020 us there).
     """
-    if dN.shape[1] == 1:
+    if dN.shape[1] == 1:  # 0.0 + (...) below: the old running sum from zero, so a -0.0 term still gives +0.0
         wq = w[e, 0]
         for a in range(8):
             d0, d1, d2 = wq * dN[e, 0, a, 0], wq * dN[e, 0, a, 1], wq * dN[e, 0, a, 2]
