@@ -13,21 +13,20 @@ integrator's share: kinetic energy against the work of all forces, the selective
 with a large closure is the one whose forces and booked energies disagree. For a contact the closure without its
 ``contact_area_work`` is printed beside it: what the balance would lack without that term.
 
-Diagnostic only (one thread recommended, ``NUMBA_NUM_THREADS=1``): each source's force array is copied once per
-cycle, some tens of microseconds per cycle for 10^4 nodes. It wraps the sources' ``add_forces`` / ``add_force`` and
-the first group's ``update`` (which sees each cycle's positions), so it follows the engine's uniform loop
-(``engine.solver``), not the subcycled one.
+Diagnostic only: each source's force array is copied once per cycle (some tens of microseconds per cycle for 10^4
+nodes, serial numpy), so the elements' parallel share of the cycle shrinks and one thread (``NUMBA_NUM_THREADS=1``)
+wastes little. It wraps the sources' ``add_forces`` / ``add_force`` and the first group's ``update`` (which sees
+each cycle's positions), so it follows the engine's uniform loop (``engine.solver``): refused for subcycled steps,
+and for shells with rotations (the work of moments is not counted).
 """
 
 from __future__ import annotations
 
 import argparse
-import copy
 import sys
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from fdeck.compile.problem import compile_deck
 from fdeck.deck.loader import load_file
@@ -36,25 +35,29 @@ from fdeck.engine import solver
 from fdeck.engine.ledger import DISSIPATED, STORED, WORK
 
 
-def load(deck: Path, study: Path | None, variant: str | None) -> tuple[dict, Path]:
-    """(deck data, folder its relative paths start from), a study variant resolved as ``fdeck study`` does."""
+def load(deck: Path | None, study: Path | None, variant: str | None) -> tuple[dict, Path]:
+    """(deck data, folder its relative paths start from): DECK, or the variant of a study as ``fdeck study`` plans
+    it (listed or grid variants; the study file checked with located messages)."""
     if study is None:
         data, _ = load_file(deck)
         return data, deck.parent
-    from fdeck.study.variants import resolve
+    from fdeck.study.study import load_study
 
-    spec = yaml.safe_load(study.read_text())
-    base = (study.parent / spec["base"]).resolve()
-    data, _ = load_file(base)
-    changes = dict(spec.get("set", {}))
-    changes.update(next(v for v in spec["variants"] if v["name"] == variant)["set"])
-    return resolve(copy.deepcopy(data), changes), base.parent
+    _, planned = load_study(study)
+    names = [p.name for p in planned]
+    if variant not in names:
+        raise SystemExit(f"{study}: no variant {variant!r}; its variants: {', '.join(names)}")
+    chosen = planned[names.index(variant)]
+    return chosen.deck, chosen.base_dir
 
 
 def booked(source) -> float:
-    """Stored + dissipated - work of a source's ledger terms (rate terms left out: none among force sources)."""
+    """Stored + dissipated - work of a source's ledger terms; rate terms (a power the engine's ledger integrates:
+    a viscous hourglass's dissipation) are left out, so such a source's closure includes them (``main`` names them)."""
     total = 0.0
     for term, value in zip(source.terms, source.term_values()):
+        if term.rate:
+            continue
         if term.kind in (STORED, DISSIPATED):
             total += value
         elif term.kind == WORK:
@@ -122,7 +125,14 @@ def main(argv=None) -> int:
         ap.error("give a DECK or --study with --variant")
     data, base = load(a.deck, a.study, a.variant)
     problem = compile_deck(Deck.model_validate(data), base)
+    if any(getattr(e, "subcycles", False) for e in problem.effects):
+        raise SystemExit("subcycled steps: their groups update at their own levels, which this probe does not follow")
+    if problem.rotations is not None:
+        raise SystemExit("shell nodes with rotations: the work of moments is not counted here")
     probe = Closure(problem)
+    rated = [f"{s.name}: {t.name}" for s in probe.sources for t in s.terms if t.rate]
+    if rated:
+        print("left out (rates, integrated by the engine's ledger only; in these sources' closures):", ", ".join(rated))
     rows = []
 
     class Sink(solver.Sink):
@@ -137,7 +147,8 @@ def main(argv=None) -> int:
           "for a contact, in brackets, the closure without its booked contact_area_work")
     print(" " * 20 + " | ".join(f"{n[:26]:>26s}" for n in names))
     _, w0, b0, a0 = rows[0]
-    for row, w, b, aw in rows[::max(1, len(rows) // a.rows)] + [rows[-1]]:
+    shown = rows[::max(1, len(rows) // a.rows)]
+    for row, w, b, aw in shown + ([] if shown[-1] is rows[-1] else [rows[-1]]):
         closure = (b - b0) + (w - w0)
         without = closure + (aw - a0)
         cells = [f"{c:+12.4f}" + (f" [{u:+11.4f}]" if u != c else " " * 14) for c, u in zip(closure, without)]

@@ -11,19 +11,21 @@ area, on both faces, with half the thickness as offset o_i.
 gap g = d(x - u) - o with d the tool's signed distance and u the tool's translation;
 overclosure h = -g. Normal force f_n = p(h) A n, from the linear law p = k h or the exponential law of MODELS 7
 continued linearly beyond its stiffness cap. Its energy A e(h), e = int p dh, is stored (``contact_energy``), so
-f_n = -dE/dx while A stays put: on a plane, with the blank flat on it.
+f_n = -dE/dx while A stays put, as on a plane.
 
-Area: A_i = -a_i . n changes when n turns against the node's reference vector area a_i (a blank drawn over a die's
-radius, a node sliding over a curved punch), and the force omits dA/dx, so A e is not a potential of it. The
-difference is booked as a work of its own, ``contact_area_work``: per node and call (e_old + e_new) / 2 (A_new -
-A_old), so that stored energy minus it changes by the trapezoidal work of the normal force. Measured with
+Area: A_i = max(0, -a_i . n) changes when n turns against the node's reference vector area a_i (a blank drawn over
+a die's radius, a node sliding over a curved punch), and the force omits dA/dx, so A e is not a potential of it.
+The difference is booked as a work of its own, ``contact_area_work``: per node and call (e_old + e_new) / 2 (A_new -
+A_old), so that stored energy minus it changes by minus the trapezoidal work of the normal force (to third order in
+the increment per call). Measured with
 ``python studies/ledger_closure.py --study decks/studies/tetrahedron_in_plane_tracking.yaml --variant
 in_plane_tracked`` (10 mm two-layer half tetrahedron with in-plane fibre bending, 18 247 cycles): the die's contact
 would close with -32.0 mJ without this term (the blank drawn over the die opening's radius), -2.0 mJ with it (the
 punch's +1.5 / -0.1 mJ), and the run's balance error falls from -31.9 to -3.5 mJ (0.8 % to 0.09 % of the strain
 energy). The force is not changed to the current area (a blank turned 45 degrees against its reference carries
-0.71 of its area here, so under the linear law it sinks 1.4 times deeper than on a plane): that would move every forming answer; the
-column says how much the choice matters.
+0.71 of its area here, so under the linear law it sinks 1.4 times deeper than on a plane): that would move every
+forming answer. Booked, this energy that the force law itself makes no longer shows in the balance error; the
+column shows its size instead (compare it with the balance error).
 
 Friction: an elastic stick spring of stiffness k_t = stick_stiffness * (dp/dh)_max A per node carries the tangential
 force; the trial force f_t - k_t du_t (du_t the increment of the node's displacement relative to the tool, in the
@@ -225,7 +227,7 @@ def contact_forces(x, nodes, dist, nrm, area, vec, offset, two_sided, u, law, kt
         f_int[a, 2] -= f[i, 2]
         gap[i], pressure[i] = g, p
         # the area's change, not a work of f: booked with the mean energy per area, so that A e - (this) changes by
-        # the mean A times the change of e, which is the trapezoidal work of the normal force
+        # the mean A times the change of e, which equals minus the normal force's trapezoidal work to O(dx^3)
         area_work[i] = 0.5 * (last[i, 1] + e_n) * (A - last[i, 0]) if last[i, 0] >= 0.0 else 0.0
         last[i, 0], last[i, 1] = A, e_n
         e_t = (t0 * t0 + t1 * t1 + t2 * t2) / (2.0 * kt[i]) if kt[i] > 0.0 else 0.0
