@@ -158,7 +158,8 @@ def test_block_on_a_triangulated_plane_runs_as_on_the_analytic_plane(tmp_path):
     for c in ha:
         family = [k for k in ha if k.rsplit("_", 1)[0] == c.rsplit("_", 1)[0]]  # force_x with force_y, force_z
         scale = max(max(np.abs(ha[k]).max() for k in family), 1e-30)
-        if c == "energy_balance_error":  # a difference of energies: its round-off scales with them
+        if c in ("energy_balance_error", "contact_area_work"):  # round-off of energies (the area work is 0 on
+            # the analytic plane, whose normal is exact, and round-off of the triangles' normals on the mesh)
             scale = max(np.abs(ha[k]).max() for k in ("kinetic_energy", "external_work", "friction_dissipation"))
         assert np.abs(ha[c] - hm[c]).max() <= 1e-9 * scale, c
     assert hm["friction_dissipation"][-1] > 0.0
