@@ -279,7 +279,8 @@ def ellipticity(result_dir, frames, box=None, preset="3weave") -> list[tuple[int
     return out
 
 
-def main() -> None:
+def parser() -> argparse.ArgumentParser:
+    """The command line of this script (one subcommand per function above)."""
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = ap.add_subparsers(dest="cmd", required=True)
     r = sub.add_parser("render")
@@ -301,7 +302,8 @@ def main() -> None:
     t.add_argument("deck")
     t.add_argument("result_dir")
     t.add_argument("out_dir")
-    t.add_argument("--set", nargs="+", default=[], metavar="PATH=VALUE", help="deck path = YAML value")
+    t.add_argument("--set", nargs="+", action="extend", default=[], metavar="PATH=VALUE",
+                   help="deck path = YAML value (repeatable)")
     t.add_argument("--frame", type=int, default=-1, help="blank frame index (0 = the initial one; default the last)")
     mi = sub.add_parser("mirror")
     mi.add_argument("result_dir")
@@ -314,7 +316,11 @@ def main() -> None:
     ro.add_argument("name", help="path name (output.paths[].name), element-wise (no window)")
     ro.add_argument("result_dirs", nargs="+")
     ro.add_argument("--until", type=float, default=np.inf, help="arc length [mm] splitting the two figures")
-    a = ap.parse_args()
+    return ap
+
+
+def main() -> None:
+    a = parser().parse_args()
     if a.cmd == "render":
         print(render(a.result_dir, a.png, a.field, a.view, a.title, a.limits, a.frame))
     elif a.cmd == "mirror":

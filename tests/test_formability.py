@@ -238,6 +238,17 @@ output:
     assert np.abs(read_table(tmp_path / "first" / "path_mid.csv")["shear_angle"]).max() < 1e-9
 
 
+def test_retable_takes_every_set_whether_given_once_or_repeated():
+    """Requirement: ``retable --set A=1 --set B=2`` applies both settings, as ``--set A=1 B=2`` does (argparse's
+    default would keep the last ``--set`` only, silently dropping a mesh change and running a 3 mm frame on the 5 mm
+    mesh's deck). Exact: the parsed list is the one given."""
+    ap = _forming_script().parser()
+    given = ["mesh.block.divisions=[100,100,4]", "output.paths.0.window=5.0", "output.paths.1.window=5.0"]
+    repeated = ap.parse_args(["retable", "d.yaml", "run", "out"] + [w for g in given for w in ("--set", g)])
+    once = ap.parse_args(["retable", "d.yaml", "run", "out", "--set"] + given)
+    assert repeated.set == once.set == given
+
+
 def test_path_deck_errors_are_located():
     """Requirement: a path with coinciding corners or a name that is not a file name part, or two paths of one
     name, is a located validation error."""
