@@ -204,12 +204,15 @@ def retable(deck_path, result_dir, out_dir, sets: dict | None = None, frame: int
     from fdeck.deck.model import Deck
     from fdeck.physics.measures.tables import PathTable
     from fdeck.run import write_end_tables
-    from fdeck.study.deck_paths import set_value
+    from fdeck.study.deck_paths import PathError, set_value
 
     deck_path = Path(deck_path)
     data, _ = load_file(deck_path)
     for key, value in (sets or {}).items():
-        set_value(data, key, value)
+        try:
+            set_value(data, key, value)
+        except PathError as exc:  # a bad --set is the user's input: say which, no traceback
+            raise SystemExit(f"retable: --set {key}=...: {exc}") from None
     problem = compile_deck(Deck.model_validate(data), deck_path.parent)
     if problem.rotations is not None:
         raise SystemExit("retable: shells with rotations need their directors, which the frames do not hold")

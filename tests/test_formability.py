@@ -238,7 +238,7 @@ output:
     assert np.abs(read_table(tmp_path / "first" / "path_mid.csv")["shear_angle"]).max() < 1e-9
 
 
-def test_retable_takes_every_set_whether_given_once_or_repeated():
+def test_retable_takes_every_set_whether_given_once_or_repeated_and_names_a_bad_one():
     """Requirement: ``retable --set A=1 --set B=2`` applies both settings, as ``--set A=1 B=2`` does (argparse's
     default would keep the last ``--set`` only, silently dropping a mesh change and running a 3 mm frame on the 5 mm
     mesh's deck). Exact: the parsed list is the one given."""
@@ -247,6 +247,10 @@ def test_retable_takes_every_set_whether_given_once_or_repeated():
     repeated = ap.parse_args(["retable", "d.yaml", "run", "out"] + [w for g in given for w in ("--set", g)])
     once = ap.parse_args(["retable", "d.yaml", "run", "out", "--set"] + given)
     assert repeated.set == once.set == given
+    # a setting that leads nowhere is named, not a traceback (checked before any frame is read)
+    deck = Path(__file__).parents[1] / "decks" / "forming" / "tetrahedron_coarse.yaml"
+    with pytest.raises(SystemExit, match="output.paths.9"):
+        _forming_script().retable(deck, "no_such_run", "no_such_out", {"output.paths.9": 1})
 
 
 def test_path_deck_errors_are_located():
