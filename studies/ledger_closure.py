@@ -51,10 +51,11 @@ def load(deck: Path | None, study: Path | None, variant: str | None) -> tuple[di
     return chosen.deck, chosen.base_dir
 
 
-def booked(source) -> float:
-    """Stored + dissipated - work of a source's ledger terms; rate terms (a power the engine's ledger integrates:
-    a viscous hourglass's dissipation) are left out, so such a source's closure includes them (``main`` names them)."""
-    total = 0.0
+def booked(source) -> tuple[float, float]:
+    """(stored + dissipated - work, contact_area_work) of a source's ledger terms [mJ], from one call of its
+    ``term_values``; rate terms (a power the engine's ledger integrates: a viscous hourglass's dissipation) are left
+    out, so such a source's closure includes them (``main`` names them)."""
+    total = area = 0.0
     for term, value in zip(source.terms, source.term_values()):
         if term.rate:
             continue
@@ -62,7 +63,9 @@ def booked(source) -> float:
             total += value
         elif term.kind == WORK:
             total -= value
-    return total
+        if term.name == "contact_area_work":
+            area = value
+    return total, area
 
 
 class Closure:
@@ -101,17 +104,10 @@ class Closure:
             self.force[i] = force
         return wrapped
 
-    def booked(self) -> np.ndarray:
-        return np.array([booked(s) for s in self.sources])
-
-    def area_work(self) -> np.ndarray:
-        """Each source's ``contact_area_work`` so far (0 for the others) [mJ]."""
-        out = np.zeros(len(self.sources))
-        for i, s in enumerate(self.sources):
-            for term, value in zip(s.terms, s.term_values()):
-                if term.name == "contact_area_work":
-                    out[i] = value
-        return out
+    def booked(self) -> tuple[np.ndarray, np.ndarray]:
+        """Each source's (booked energy, contact_area_work) now [mJ] (``booked``)."""
+        pairs = np.array([booked(s) for s in self.sources])
+        return pairs[:, 0], pairs[:, 1]
 
 
 def main(argv=None) -> int:
@@ -137,7 +133,7 @@ def main(argv=None) -> int:
 
     class Sink(solver.Sink):
         def history(self, row):
-            rows.append((list(row), probe.work.copy(), probe.booked(), probe.area_work()))
+            rows.append((list(row), probe.work.copy(), *probe.booked()))
 
     result = solver.run(problem, Sink())
     print(f"status {result.status} {result.message or ''}, {result.cycles} cycles")
