@@ -2,12 +2,15 @@
 
     python benchmarks/kernel_parts.py reduced linear_elastic             # 50 x 50 x 4 block, 1 thread
     python benchmarks/kernel_parts.py fbar fabric_hyper_3weave --threads 2
+    python benchmarks/kernel_parts.py fbar fabric_hyper_3weave --selective 30   # and the selective-mass solve
 
 Builds bench.py's block deck, deforms it by a fixed pseudo-random 1 % of an element, then times each kernel of the
 element update (kinematics, law, forces, hourglass), the deterministic gather, the stable step and the two integrator
 passes on their own, each the best of five repeats of 100 calls, in microseconds per element and call; then the
 whole cycle as ``solver.run`` measures it (200 cycles after a warm-up, with the solver's own split). The parts'
-sum and the whole differ by the solver's bookkeeping. Run it at two commits (``git worktree``) to see what a change
+sum and the whole differ by the solver's bookkeeping. With ``--selective FACTOR`` the step is selectively mass
+scaled by that factor and the conjugate-gradient solve's passes are timed too (``cg_*``, per element and pass;
+``cg_solve_per_iteration``: one whole solve from zero of the cycle's residual, per element and iteration). Run it at two commits (``git worktree``) to see what a change
 to a kernel bought; on a shared host, run both back to back and read the differences, not the absolute values.
 """
 
@@ -35,7 +38,7 @@ def best_us_per_element(fn, n_el: int, calls: int = 100, repeats: int = 5) -> fl
     return 1e6 * best / n_el
 
 
-def parts(form: str, mat: str, divisions, threads: int) -> dict:
+def parts(form: str, mat: str, divisions, threads: int, selective: float | None = None) -> dict:
     """{kernel: us per element and call} for one hexahedral group, and the whole cycle under ``whole``."""
     import numba
     import numpy as np
@@ -48,7 +51,10 @@ def parts(form: str, mat: str, divisions, threads: int) -> dict:
     from fdeck.physics.elements import hex8
 
     numba.set_num_threads(threads)
-    problem = compile_deck(Deck.model_validate(bench.deck(form, mat, divisions, 200)))
+    card = bench.deck(form, mat, divisions, 200)
+    if selective:
+        card["steps"][0]["mass_scaling"] = {"factor": selective, "selective": True}
+    problem = compile_deck(Deck.model_validate(card))
     g = problem.groups[0]
     n = len(g.conn)
     rng = np.random.default_rng(0)
@@ -74,7 +80,11 @@ def parts(form: str, mat: str, divisions, threads: int) -> dict:
     work = [np.zeros_like(x) for _ in range(4)]
     out["kick"] = lambda: integrate.kick(v, v_old, inv_m, zero, f, zero, 1e-9)
     out["drift"] = lambda: integrate.drift(x, v, v_old, inv_m, zero, f, zero, *work, 0.0, 1e-9, False)
+    if selective:
+        out.update(cg_parts(problem, x))
     result = {name: best_us_per_element(fn, n) for name, fn in out.items()}
+    if selective:
+        result["cg_solve_per_iteration"] = cg_solve_per_iteration(problem, x)
     problem.steps[0].max_cycles = 3
     solver.run(problem, solver.Sink())
     problem.steps[0].max_cycles = 200
@@ -86,20 +96,73 @@ def parts(form: str, mat: str, divisions, threads: int) -> dict:
     return result
 
 
+def _solver_of(problem, x):
+    """The selective-mass solver of a compiled problem, set up for its first step."""
+    from fdeck.engine import solver
+
+    problem.steps[0].max_cycles = 1
+    solver.run(problem, solver.Sink())  # begin_step and prepare: the step's factors and preconditioner
+    return next(e for e in problem.effects if getattr(e, "solves_mass", False)).solver
+
+
+def cg_parts(problem, x) -> dict:
+    """The four passes of one conjugate-gradient iteration (``engine.selective_mass.solve``) as callables."""
+    import numpy as np
+
+    from fdeck.engine import selective_mass as sm
+
+    s = _solver_of(problem, x)
+    rng = np.random.default_rng(1)
+    p, res = rng.standard_normal(x.shape), rng.standard_normal(x.shape)
+    q, z, a = np.zeros_like(x), np.zeros_like(x), np.zeros_like(x)
+    ye = np.zeros(s.conn.shape + (3,))
+    return {
+        "cg_element_added": lambda: sm.element_added(p, s.conn, s.dX, s.Jinv, s.c, ye),
+        "cg_gather_dot": lambda: sm._gather_dot(ye, s.ptr, s.slots, q, p, s.free, s._part),
+        "cg_direction": lambda: sm._direction(z, res, s.dinv, p, 0.5, q, s.m),
+        "cg_step": lambda: sm._step(a, res, p, q, s.free, 0.0, s.dinv, s._part),
+    }
+
+
+def cg_solve_per_iteration(problem, x) -> float:
+    """Best of three whole solves from zero of r = -f_int(x), per element and iteration [us]."""
+    import numpy as np
+
+    from fdeck.engine import selective_mass as sm
+
+    s = _solver_of(problem, x)
+    g = problem.groups[0]
+    g.update(x, np.zeros_like(x))
+    r = np.zeros_like(x)
+    g.add_forces(r)
+    r = -r
+    work = [np.zeros(s.conn.shape + (3,))] + [np.zeros_like(x) for _ in range(4)]
+    best = float("inf")
+    for _ in range(3):
+        a = np.zeros_like(x)
+        t0 = time.perf_counter()
+        it, _ = sm.solve(a, r, s.m, s.conn, s.dX, s.Jinv, s.c, s.ptr, s.slots, s.free, s.dinv, s.tol, s.max_it,
+                         *work, s._part)
+        best = min(best, (time.perf_counter() - t0) / max(it, 1))
+    return 1e6 * best / len(s.conn)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("formulation", choices=["reduced", "full", "fbar"])
     ap.add_argument("material", help="bench.py's material names: linear_elastic, neo_hookean, fabric_hyper_3weave")
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--divisions", type=int, nargs=3, default=[50, 50, 4])
+    ap.add_argument("--selective", type=float, default=None, metavar="FACTOR",
+                    help="selective mass scaling by FACTOR, and time the conjugate-gradient passes")
     a = ap.parse_args()
-    r = parts(a.formulation, a.material, a.divisions, a.threads)
+    r = parts(a.formulation, a.material, a.divisions, a.threads, a.selective)
     split = r.pop("solver_split")
     whole = r.pop("whole")
     for name, us in r.items():
-        print(f"{name:16s} {us:8.4f} us per element")
-    print(f"{'sum of parts':16s} {sum(r.values()):8.4f}")
-    print(f"{'whole cycle':16s} {whole:8.4f}  (solver's split: {split})")
+        print(f"{name:24s} {us:8.4f} us per element")
+    print(f"{'sum of parts':24s} {sum(us for k, us in r.items() if not k.startswith('cg_')):8.4f} (cg_ aside)")
+    print(f"{'whole cycle':24s} {whole:8.4f}  (solver's split: {split})")
 
 
 if __name__ == "__main__":

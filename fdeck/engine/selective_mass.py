@@ -40,7 +40,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from fdeck.engine.gather import gather_add, node_slots, node_sum
+from fdeck.engine.gather import gather_add, node_slots, node_sum, slot_rows
 from fdeck.jit import njit, njit_inline, njit_parallel, prange
 
 WARM_START_ORDER = 2
@@ -49,49 +49,53 @@ WARM_START_ORDER = 2
 CHUNK = 256  # nodes per partial sum of a dot product (fixed, so the sums do not depend on the thread count)
 
 
-@njit
+NODES = 8  # hexahedra only (shells are refused): a constant trip count lets the compiler unroll the node loops
+
+
+@njit_inline
 def _rigid_fit(p, conn, dX, Jinv, e):
-    """The rigid part of element e's nodal values p: (mean, w) as six scalars, w = Jinv sum_a dX_a x (p_a - mean)
-    (the best-fitting rotation; (I - P_e) p_a = p_a - mean - w x dX_a). No allocation (called per element)."""
-    n = conn.shape[1]
+    """The rigid part of element e's nodal values p: (mean, w) as six scalars, w = Jinv sum_a dX_a x p_a (the
+    best-fitting rotation; (I - P_e) p_a = p_a - mean - w x dX_a). No allocation (called per element).
+
+    One pass over the nodes: sum_a dX_a x (p_a - mean) is written sum_a dX_a x p_a because sum_a dX_a = 0 (up to
+    round-off, relative 1e-16 |X| / |dX|). With the node count a constant as well, element_added went 80 -> 46-61
+    ns per element (14 400 hexahedra, one thread; the bits differ in the last place)."""
     m0 = 0.0
     m1 = 0.0
     m2 = 0.0
-    for a in range(n):
-        m0 += p[conn[e, a], 0]
-        m1 += p[conn[e, a], 1]
-        m2 += p[conn[e, a], 2]
-    m0 /= n
-    m1 /= n
-    m2 /= n
     L0 = 0.0
     L1 = 0.0
     L2 = 0.0
-    for a in range(n):
-        d0 = p[conn[e, a], 0] - m0
-        d1 = p[conn[e, a], 1] - m1
-        d2 = p[conn[e, a], 2] - m2
+    for a in range(NODES):
+        n = conn[e, a]
+        d0 = p[n, 0]
+        d1 = p[n, 1]
+        d2 = p[n, 2]
+        m0 += d0
+        m1 += d1
+        m2 += d2
         L0 += dX[e, a, 1] * d2 - dX[e, a, 2] * d1
         L1 += dX[e, a, 2] * d0 - dX[e, a, 0] * d2
         L2 += dX[e, a, 0] * d1 - dX[e, a, 1] * d0
     w0 = Jinv[e, 0, 0] * L0 + Jinv[e, 0, 1] * L1 + Jinv[e, 0, 2] * L2
     w1 = Jinv[e, 1, 0] * L0 + Jinv[e, 1, 1] * L1 + Jinv[e, 1, 2] * L2
     w2 = Jinv[e, 2, 0] * L0 + Jinv[e, 2, 1] * L1 + Jinv[e, 2, 2] * L2
-    return m0, m1, m2, w0, w1, w2
+    return m0 / NODES, m1 / NODES, m2 / NODES, w0, w1, w2
 
 
 @njit_parallel
 def element_added(p, conn, dX, Jinv, c, ye):
-    """ye (n_el, n, 3) = c_e (I - P_e) p_e for each element: the element products dM_e p. dX (n_el, n, 3)
+    """ye (n_el, 8, 3) = c_e (I - P_e) p_e for each element: the element products dM_e p. dX (n_el, 8, 3)
     reference positions about the element's centre [mm], Jinv (n_el, 3, 3) inverse of sum_a |dX_a|^2 I - dX_a dX_a
     [1/mm^2]."""
-    n = conn.shape[1]
     for e in prange(conn.shape[0]):
         m0, m1, m2, w0, w1, w2 = _rigid_fit(p, conn, dX, Jinv, e)
-        for a in range(n):
-            ye[e, a, 0] = c[e] * (p[conn[e, a], 0] - m0 - (w1 * dX[e, a, 2] - w2 * dX[e, a, 1]))
-            ye[e, a, 1] = c[e] * (p[conn[e, a], 1] - m1 - (w2 * dX[e, a, 0] - w0 * dX[e, a, 2]))
-            ye[e, a, 2] = c[e] * (p[conn[e, a], 2] - m2 - (w0 * dX[e, a, 1] - w1 * dX[e, a, 0]))
+        ce = c[e]
+        for a in range(NODES):
+            n = conn[e, a]
+            ye[e, a, 0] = ce * (p[n, 0] - m0 - (w1 * dX[e, a, 2] - w2 * dX[e, a, 1]))
+            ye[e, a, 1] = ce * (p[n, 1] - m1 - (w2 * dX[e, a, 0] - w0 * dX[e, a, 2]))
+            ye[e, a, 2] = ce * (p[n, 2] - m2 - (w0 * dX[e, a, 1] - w1 * dX[e, a, 0]))
 
 
 @njit_parallel
@@ -142,10 +146,11 @@ def _gather_dot(ye, ptr, slots, q, p, free, part):
     same order, as ``gather_add`` followed by ``dot``: one pass)."""
     n = q.shape[0]
     n_chunk = part.shape[0]
+    rows = slot_rows(ye)
     for c in prange(n_chunk):
         s = 0.0
         for i in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
-            s0, s1, s2 = node_sum(ye, ptr, slots, i)
+            s0, s1, s2 = node_sum(rows, ptr, slots, i)
             q[i, 0] += s0
             q[i, 1] += s1
             q[i, 2] += s2
@@ -175,14 +180,14 @@ def _step(a, res, p, q, free, alpha, dinv, part):
 @njit_parallel
 def _kinetic(vn, conn, dX, Jinv, c, ke_e):
     """ke_e (n_el,) = 1/2 c_e |(I - P_e) vn_e|^2 [mJ] (vn (n_node, 3) the velocities at t_n)."""
-    n = conn.shape[1]
     for e in prange(conn.shape[0]):
         m0, m1, m2, w0, w1, w2 = _rigid_fit(vn, conn, dX, Jinv, e)
         s = 0.0
-        for a in range(n):
-            d0 = vn[conn[e, a], 0] - m0 - (w1 * dX[e, a, 2] - w2 * dX[e, a, 1])
-            d1 = vn[conn[e, a], 1] - m1 - (w2 * dX[e, a, 0] - w0 * dX[e, a, 2])
-            d2 = vn[conn[e, a], 2] - m2 - (w0 * dX[e, a, 1] - w1 * dX[e, a, 0])
+        for a in range(NODES):
+            n = conn[e, a]
+            d0 = vn[n, 0] - m0 - (w1 * dX[e, a, 2] - w2 * dX[e, a, 1])
+            d1 = vn[n, 1] - m1 - (w2 * dX[e, a, 0] - w0 * dX[e, a, 2])
+            d2 = vn[n, 2] - m2 - (w0 * dX[e, a, 1] - w1 * dX[e, a, 0])
             s += d0 * d0 + d1 * d1 + d2 * d2
         ke_e[e] = 0.5 * c[e] * s
 
@@ -203,10 +208,15 @@ def solve(a, r, m, conn, dX, Jinv, c, ptr, slots, free, dinv, tol, max_it, ye, q
     Stops when sqrt(res . D^-1 res) <= tol sqrt(rhs . D^-1 rhs) (rhs = r - dM a_c on the free dofs) or after
     max_it iterations. Work arrays ye (n_el, n, 3), q, res, z, p (n_node, 3), part (n_chunk,)."""
     # right-hand side norm: r - (M + dM) a_c on the free dofs, with a_c alone
+    prescribed = False
     for i in range(a.shape[0]):
         for j in range(3):
             z[i, j] = a[i, j] * (1.0 - free[i, j])
-    apply(z, m, conn, dX, Jinv, c, ptr, slots, ye, q)
+            prescribed = prescribed or z[i, j] != 0.0
+    if prescribed:
+        apply(z, m, conn, dX, Jinv, c, ptr, slots, ye, q)
+    else:  # symmetry planes and fixed supports: (M + dM) 0 = 0, one element pass fewer per cycle
+        q[...] = 0.0
     for i in range(a.shape[0]):
         for j in range(3):
             res[i, j] = (r[i, j] - q[i, j]) * free[i, j]
@@ -246,6 +256,8 @@ class SelectiveMass:
     def __init__(self, conns: list[np.ndarray], X: np.ndarray):
         n_node = len(X)
         self.conn = np.ascontiguousarray(np.concatenate(conns), np.int64)
+        if self.conn.shape[1] != NODES:
+            raise ValueError(f"selective mass is built for {NODES}-node hexahedra, not {self.conn.shape[1]}-node cells")
         self.ptr, self.slots = node_slots(self.conn, n_node)
         n_el, k = self.conn.shape
         Xe = X[self.conn]
@@ -274,6 +286,7 @@ class SelectiveMass:
         self.max_iterations = 0
         self.capped = 0
         self.last_residual = 0.0
+        self.ke_last = 0.0  # added kinetic energy at the last cycle that computed it [mJ]
 
     def set_step(self, betas: list[np.ndarray] | None, element_mass: list[np.ndarray], m: np.ndarray,
                  free: np.ndarray, cg: tuple[float, int]) -> None:
@@ -349,11 +362,14 @@ class SelectiveMass:
         the trapezoidal increment lacks g . dx / 2 [mJ]."""
         return 0.5 * float(np.sum(self.g * dx))
 
-    def book(self, v, v_old, reaction, fe_prev, first: bool) -> float:
+    def book(self, v, v_old, reaction, fe_prev, first: bool, kinetic: bool = True) -> float:
         """After the engine's drift: the reactions and the stored external force include dM a; returns the added
-        kinetic energy 1/2 v_n^T dM v_n at t_n [mJ]."""
+        kinetic energy 1/2 v_n^T dM v_n at t_n [mJ]. With ``kinetic`` False (no history row this cycle: only rows
+        read the kinetic energy) the last value computed is returned instead, and one element pass is saved."""
         reaction += self.g
         fe_prev += self.g
-        vn = v_old if first else 0.5 * (v_old + v)
-        _kinetic(vn, self.conn, self.dX, self.Jinv, self.c, self._ke)
-        return float(self._ke.sum())
+        if kinetic or first:
+            vn = v_old if first else 0.5 * (v_old + v)
+            _kinetic(vn, self.conn, self.dX, self.Jinv, self.c, self._ke)
+            self.ke_last = float(self._ke.sum())
+        return self.ke_last

@@ -381,8 +381,10 @@ def _run(problem, sink: Sink, should_stop, resume) -> Result:
                                   res.cycles == 0)
                 w_ext += w
                 d_damp += dd
-                if sms is not None and sms.active:  # reactions and kinetic energy of the added mass
-                    sms.ke = sms.solver.book(v, v_old, reaction, fe_prev, res.cycles == 0)
+                row_due = next_hist < len(hist_times) and t >= hist_times[next_hist] - 1e-12 * T
+                if sms is not None and sms.active:  # reactions and kinetic energy of the added mass (the latter
+                    # read only by history rows and the first cycle's energy: not computed on other cycles)
+                    sms.ke = sms.solver.book(v, v_old, reaction, fe_prev, res.cycles == 0, row_due or energy0 is None)
                     ke += sms.ke
                 if rot is not None:
                     w, dd, ke_rot = drift_rot(rot.d, rot.w, rot.w_old, rot.I, rot.m_ext, rot.m_int, rot.m_damp,
@@ -397,7 +399,7 @@ def _run(problem, sink: Sink, should_stop, resume) -> Result:
                                      node=first_bad_node(x, v, f_int, f_ext, f_damp))
                 if energy0 is None:
                     energy0 = book.energy(ke)
-                if next_hist < len(hist_times) and t >= hist_times[next_hist] - 1e-12 * T:
+                if row_due:
                     extra = [ke_rot] if rot is not None else []
                     row, error = book.row(t, dt, ke, w_ext, d_damp, energy0, extra)
                     if not all(math.isfinite(r) for r in row[:len(book.columns)]):
