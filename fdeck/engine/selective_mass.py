@@ -218,6 +218,24 @@ def _velocities(v, v_old, dt_avg, a, free):
 
 
 @njit
+def _kinetic_of(vn, conn, dX, Jinv, dc, idx):
+    """sum over the elements idx (k,) of 1/2 dc_k |(I - P_e) vn_e|^2 [mJ] (``_kinetic`` for a few elements)."""
+    total = 0.0
+    for k in range(idx.shape[0]):
+        e = idx[k]
+        m0, m1, m2, w0, w1, w2 = _rigid_fit(vn, conn, dX, Jinv, e)
+        s = 0.0
+        for a in range(NODES):
+            n = conn[e, a]
+            d0 = vn[n, 0] - m0 - (w1 * dX[e, a, 2] - w2 * dX[e, a, 1])
+            d1 = vn[n, 1] - m1 - (w2 * dX[e, a, 0] - w0 * dX[e, a, 2])
+            d2 = vn[n, 2] - m2 - (w0 * dX[e, a, 1] - w1 * dX[e, a, 0])
+            s += d0 * d0 + d1 * d1 + d2 * d2
+        total += 0.5 * dc[k] * s
+    return total
+
+
+@njit
 def apply(p, m, conn, dX, Jinv, c, ptr, slots, ye, q):
     """q = (M + dM) p over all dofs [N for p in mm/s^2]."""
     _scaled(q, m, p)
@@ -338,14 +356,14 @@ class SelectiveMass:
     def add(self, idx: np.ndarray, dc: np.ndarray, v, v_old) -> float:
         """Raise the added mass of elements idx (k,) by dc (k,) [t] (c_e = beta_e m_e / n) and the preconditioner
         with it; returns the kinetic energy it adds at the current velocities, 1/2 sum dc_e |(I - P_e) v_e|^2 [mJ]
-        (v_n as ``book`` takes it)."""
+        (v_n as ``book`` takes it). O(k) work: the stroke's tracking raises a few elements on most cycles late in a
+        forming run, so a pass over every element here cost more than the rest of the stable-step update."""
         self.c[idx] += dc
-        np.add.at(self.diag, self.conn[idx].ravel(), (dc[:, None, None] * self.q_diag[idx]).reshape(-1, 3))
-        self.dinv = self.free / self.diag
-        jump = np.zeros(len(self.c))
-        jump[idx] = dc
-        _kinetic(0.5 * (v_old + v), self.conn, self.dX, self.Jinv, jump, self._ke)
-        return float(self._ke.sum())
+        nodes = self.conn[idx]
+        np.add.at(self.diag, nodes.ravel(), (dc[:, None, None] * self.q_diag[idx]).reshape(-1, 3))
+        touched = np.unique(nodes)
+        self.dinv[touched] = self.free[touched] / self.diag[touched]
+        return _kinetic_of(0.5 * (v_old + v), self.conn, self.dX, self.Jinv, dc, idx)
 
     def accelerate(self, v, v_old, f_ext, f_int, f_damp, dt_avg) -> None:
         """After the lumped kick and the constraints: a_c = (v - v_old) / dt_avg on prescribed dofs, a_f from the

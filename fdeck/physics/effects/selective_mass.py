@@ -61,6 +61,10 @@ class SelectiveMassEffect(Effect):
         if any(t is not None for t in targets):
             self.terms = self.terms + self.tracking_terms
         self.physical = sum(float(g.mass(g.rho).sum()) for g in groups)  # [t], before any scaling
+        # element mass per unit density (n_el,) [mm^3] of each group: the lumped mass is linear in the density
+        self.unit_mass = [g.mass(np.ones(len(g.conn))).sum(axis=1) for g in groups]
+        for a in self.unit_mass:
+            a.flags.writeable = False  # a constant: not saved with checkpoints (engine.snapshot)
         self.offsets = np.cumsum([0] + [len(g.conn) for g in groups])
         self.plan = None
         self.track_dt = None
@@ -134,15 +138,16 @@ class SelectiveMassEffect(Effect):
             if not len(low):
                 continue
             factor = ((ample if wb2 is None else ample[low]) / g.dt_e[low]) ** 2
-            drho = np.zeros_like(g.rho)
-            drho[low] = g.rho[low] * (factor - 1.0)
-            g.rho[low] += drho[low]  # the group's own array (``set_density`` copies the plan's)
-            de = g.mass(drho).sum(axis=1)[low]  # added element mass [t]
+            drho = g.rho[low] * (factor - 1.0)
+            g.rho[low] += drho  # the group's own array (``set_density`` copies the plan's)
+            de = drho * self.unit_mass[i][low]  # added element mass [t]
             n = g.conn.shape[1]
             self.tracking_work += self.solver.add(self.offsets[i] + low, de / n, v, v_old)
             self.tracked_mass += float(de.sum()) * (1.0 - 2.0 / n)  # the plan's trace measure of added mass
             self.tracked[self.offsets[i] + low] = True
-            out[i] = g.stable_dt()
+            # the step goes as sqrt(rho) at fixed moduli: the raised elements' steps without a pass over all
+            g.dt_e[low] *= np.sqrt(factor)
+            out[i] = float(g.dt_e.min())
         return out
 
     def describe(self, plan) -> str | None:
