@@ -177,19 +177,25 @@ def _step(a, res, p, q, free, alpha, dinv, part):
     return _total(part)
 
 
+@njit_inline
+def _deformation_square(vn, conn, dX, Jinv, e):
+    """|(I - P_e) vn_e|^2 [mm^2/s^2] of element e: its nodal velocities less their rigid part, squared."""
+    m0, m1, m2, w0, w1, w2 = _rigid_fit(vn, conn, dX, Jinv, e)
+    s = 0.0
+    for a in range(NODES):
+        n = conn[e, a]
+        d0 = vn[n, 0] - m0 - (w1 * dX[e, a, 2] - w2 * dX[e, a, 1])
+        d1 = vn[n, 1] - m1 - (w2 * dX[e, a, 0] - w0 * dX[e, a, 2])
+        d2 = vn[n, 2] - m2 - (w0 * dX[e, a, 1] - w1 * dX[e, a, 0])
+        s += d0 * d0 + d1 * d1 + d2 * d2
+    return s
+
+
 @njit_parallel
 def _kinetic(vn, conn, dX, Jinv, c, ke_e):
     """ke_e (n_el,) = 1/2 c_e |(I - P_e) vn_e|^2 [mJ] (vn (n_node, 3) the velocities at t_n)."""
     for e in prange(conn.shape[0]):
-        m0, m1, m2, w0, w1, w2 = _rigid_fit(vn, conn, dX, Jinv, e)
-        s = 0.0
-        for a in range(NODES):
-            n = conn[e, a]
-            d0 = vn[n, 0] - m0 - (w1 * dX[e, a, 2] - w2 * dX[e, a, 1])
-            d1 = vn[n, 1] - m1 - (w2 * dX[e, a, 0] - w0 * dX[e, a, 2])
-            d2 = vn[n, 2] - m2 - (w0 * dX[e, a, 1] - w1 * dX[e, a, 0])
-            s += d0 * d0 + d1 * d1 + d2 * d2
-        ke_e[e] = 0.5 * c[e] * s
+        ke_e[e] = 0.5 * c[e] * _deformation_square(vn, conn, dX, Jinv, e)
 
 
 @njit_parallel
@@ -222,16 +228,7 @@ def _kinetic_of(vn, conn, dX, Jinv, dc, idx):
     """sum over the elements idx (k,) of 1/2 dc_k |(I - P_e) vn_e|^2 [mJ] (``_kinetic`` for a few elements)."""
     total = 0.0
     for k in range(idx.shape[0]):
-        e = idx[k]
-        m0, m1, m2, w0, w1, w2 = _rigid_fit(vn, conn, dX, Jinv, e)
-        s = 0.0
-        for a in range(NODES):
-            n = conn[e, a]
-            d0 = vn[n, 0] - m0 - (w1 * dX[e, a, 2] - w2 * dX[e, a, 1])
-            d1 = vn[n, 1] - m1 - (w2 * dX[e, a, 0] - w0 * dX[e, a, 2])
-            d2 = vn[n, 2] - m2 - (w0 * dX[e, a, 1] - w1 * dX[e, a, 0])
-            s += d0 * d0 + d1 * d1 + d2 * d2
-        total += 0.5 * dc[k] * s
+        total += 0.5 * dc[k] * _deformation_square(vn, conn, dX, Jinv, idx[k])
     return total
 
 
