@@ -141,7 +141,7 @@ def _direction(z, res, dinv, p, beta, q, m):
 
 @njit_parallel
 def _gather_dot(ye, ptr, slots, q, p, free, part):
-    """q += the element products ye (n_el, n, 3) gathered per node in a fixed order (``engine.gather``), and
+    """q += the element products ye (n_el, 8, 3) gathered per node in a fixed order (``engine.gather``), and
     returns p . q on the free dofs, summed per chunk of CHUNK nodes and then serially (the same operations, in the
     same order, as ``gather_add`` followed by ``dot``: one pass)."""
     n = q.shape[0]
@@ -246,7 +246,7 @@ def solve(a, r, m, conn, dX, Jinv, c, ptr, slots, free, dinv, tol, max_it, ye, q
     dofs and the prescribed accelerations on the others (kept). Returns (iterations, relative residual).
 
     Stops when sqrt(res . D^-1 res) <= tol sqrt(rhs . D^-1 rhs) (rhs = r - dM a_c on the free dofs) or after
-    max_it iterations. Work arrays ye (n_el, n, 3), q, res, z, p (n_node, 3), part (n_chunk,)."""
+    max_it iterations. Work arrays ye (n_el, 8, 3), q, res, z, p (n_node, 3), part (n_chunk,)."""
     # right-hand side norm: r - (M + dM) a_c on the free dofs, with a_c alone
     prescribed = False
     for i in range(a.shape[0]):
@@ -301,7 +301,7 @@ class SelectiveMass:
         self.ptr, self.slots = node_slots(self.conn, n_node)
         n_el, k = self.conn.shape
         Xe = X[self.conn]
-        self.dX = Xe - Xe.mean(axis=1, keepdims=True)  # (n_el, n, 3) [mm]
+        self.dX = Xe - Xe.mean(axis=1, keepdims=True)  # (n_el, 8, 3) [mm]
         r2 = np.einsum("eai,eai->e", self.dX, self.dX)
         J = r2[:, None, None] * np.eye(3) - np.einsum("eai,eaj->eij", self.dX, self.dX)
         self.Jinv = np.linalg.inv(J)  # (n_el, 3, 3): rotations fitted to the reference positions
@@ -321,6 +321,7 @@ class SelectiveMass:
         self._part = np.zeros((n_node + CHUNK - 1) // CHUNK)
         self._ke = np.zeros(n_el)
         self._r = np.zeros((n_node, 3))
+        self._vn = np.zeros((n_node, 3))  # scratch of ``add``: mid-cycle velocities of the raised elements' nodes
         self.cycles = 0
         self.iterations = 0
         self.max_iterations = 0
@@ -344,7 +345,7 @@ class SelectiveMass:
         S[..., 0, 1], S[..., 0, 2], S[..., 1, 2] = -self.dX[..., 2], self.dX[..., 1], -self.dX[..., 0]
         S -= np.swapaxes(S, -1, -2)
         p_diag = 1.0 / n + np.einsum("eaij,ejk,eaik->eai", S, self.Jinv, S)
-        self.q_diag = 1.0 - p_diag  # (n_el, n, 3) diagonal of I - P_e
+        self.q_diag = 1.0 - p_diag  # (n_el, 8, 3) diagonal of I - P_e
         self.diag = np.repeat(self.m[:, None], 3, axis=1)
         np.add.at(self.diag, self.conn.ravel(), (self.c[:, None, None] * self.q_diag).reshape(-1, 3))
         self.dinv = self.free / self.diag
@@ -360,7 +361,8 @@ class SelectiveMass:
         np.add.at(self.diag, nodes.ravel(), (dc[:, None, None] * self.q_diag[idx]).reshape(-1, 3))
         touched = np.unique(nodes)
         self.dinv[touched] = self.free[touched] / self.diag[touched]
-        return _kinetic_of(0.5 * (v_old + v), self.conn, self.dX, self.Jinv, dc, idx)
+        self._vn[touched] = 0.5 * (v_old[touched] + v[touched])  # the only nodes _kinetic_of reads
+        return _kinetic_of(self._vn, self.conn, self.dX, self.Jinv, dc, idx)
 
     def accelerate(self, v, v_old, f_ext, f_int, f_damp, dt_avg) -> None:
         """After the lumped kick and the constraints: a_c = (v - v_old) / dt_avg on prescribed dofs, a_f from the
@@ -396,7 +398,9 @@ class SelectiveMass:
     def book(self, v, v_old, reaction, fe_prev, first: bool, kinetic: bool = True) -> float:
         """After the engine's drift: the reactions and the stored external force include dM a; returns the added
         kinetic energy 1/2 v_n^T dM v_n at t_n [mJ]. With ``kinetic`` False (no history row this cycle: only rows
-        read the kinetic energy) the last value computed is returned instead, and one element pass is saved."""
+        and the first cycle's reference energy read the kinetic energy; other cycles only test it for being finite,
+        which the lumped part computed every cycle from the same v already does) the last value computed is
+        returned instead, and one element pass is saved."""
         reaction += self.g
         fe_prev += self.g
         if kinetic or first:

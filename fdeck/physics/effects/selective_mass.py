@@ -10,7 +10,10 @@ conjugate-gradient iterations per cycle so far, and the cycles that reached the 
 With ``track_target`` the step's target is kept during the step (``track``): the engine hands over the groups'
 element steps each cycle; elements below the target get their density (and so beta_e) raised to reach it with
 ``HEADROOM``, the conjugate-gradient preconditioner follows, and the kinetic energy the new mass carries at that
-moment, 1/2 dc_e |(I - P_e) v_e|^2, is booked as work (``mass_tracking_work``): the balance stays closed. Only the
+moment, 1/2 dc_e |(I - P_e) v_e|^2, is booked as work (``mass_tracking_work``): the balance stays closed.
+
+``ke`` (the ``added_kinetic_energy`` term) is computed on the cycles that write a history row (and the first):
+between rows it holds the last row's value, which nothing reads (``engine.selective_mass.SelectiveMass.book``). Only the
 deformation modes get the mass, so momentum and translational inertia stay those of the step's lumped mass.
 
 With fibre bending the hinges turn whole elements, which the added mass does not slow: an element's step is
@@ -36,7 +39,9 @@ TOLERANCE = 1e-9
 
 HEADROOM = 1.05
 """A tracked element's step is raised to 1.05 x the target: it then stiffens by about 10 % before it needs mass
-again, so the re-scaling (O(elements) array work) runs every few hundred cycles rather than every cycle."""
+again, so each element is re-scaled every few hundred cycles rather than every cycle. Late in a forming stroke
+some element of a large blank still falls below the target on most cycles, so a raise costs O(raised elements)
+(``track``; with fibre bending the hinges' step update that follows it still passes over every element)."""
 
 REACH = 0.8
 """With fibre bending, the tracked step is kept at most at 0.8 x the hinges' own step: an element whose hinges alone
