@@ -10,11 +10,11 @@ conjugate-gradient iterations per cycle so far, and the cycles that reached the 
 With ``track_target`` the step's target is kept during the step (``track``): the engine hands over the groups'
 element steps each cycle; elements below the target get their density (and so beta_e) raised to reach it with
 ``HEADROOM``, the conjugate-gradient preconditioner follows, and the kinetic energy the new mass carries at that
-moment, 1/2 dc_e |(I - P_e) v_e|^2, is booked as work (``mass_tracking_work``): the balance stays closed.
+moment, 1/2 dc_e |(I - P_e) v_e|^2, is booked as work (``mass_tracking_work``): the balance stays closed. Only the
+deformation modes get the mass, so momentum and translational inertia stay those of the step's lumped mass.
 
 ``ke`` (the ``added_kinetic_energy`` term) is computed on the cycles that write a history row (and the first):
-between rows it holds the last row's value, which nothing reads (``engine.selective_mass.SelectiveMass.book``). Only the
-deformation modes get the mass, so momentum and translational inertia stay those of the step's lumped mass.
+between rows it holds the last row's value, which nothing reads (``engine.selective_mass.SelectiveMass.book``).
 
 With fibre bending the hinges turn whole elements, which the added mass does not slow: an element's step is
 2 / sqrt(omega_g^2 + omega_b^2) with omega_b^2 the hinges' (against the translational mass) and omega_g^2 the
