@@ -10,7 +10,8 @@ passes on their own, each the best of five repeats of 100 calls, in microseconds
 whole cycle as ``solver.run`` measures it (200 cycles after a warm-up, with the solver's own split). The parts'
 sum and the whole differ by the solver's bookkeeping. With ``--selective FACTOR`` the step is selectively mass
 scaled by that factor and the conjugate-gradient solve's passes are timed too (``cg_*``, per element and pass;
-``cg_solve_per_iteration``: one whole solve from zero of the cycle's residual, per element and iteration). Run it at two commits (``git worktree``) to see what a change
+``cg_solve_per_iteration``: one whole solve from zero of the cycle's residual, per element and iteration).
+Run it at two commits (``git worktree``) to see what a change
 to a kernel bought; on a shared host, run both back to back and read the differences, not the absolute values.
 """
 

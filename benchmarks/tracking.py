@@ -68,7 +68,8 @@ def main():
 
     step = best_ms(g.stable_dt)
     both = best_ms(with_raise)
-    print(f"{len(g.conn)} hexahedra, {len(raised)} raised per call, {a.threads} thread(s): element steps {step:.3f} ms, "
+    print(f"{len(g.conn)} hexahedra, {len(raised)} raised per call, {a.threads} thread(s): "
+          f"element steps {step:.3f} ms, "
           f"with the raise {both:.3f} ms (the raise itself {both - step:.3f} ms)")
 
 
