@@ -82,10 +82,11 @@ def parts(form: str, mat: str, divisions, threads: int, selective: float | None 
     out["kick"] = lambda: integrate.kick(v, v_old, inv_m, zero, f, zero, 1e-9)
     out["drift"] = lambda: integrate.drift(x, v, v_old, inv_m, zero, f, zero, *work, 0.0, 1e-9, False)
     if selective:
-        out.update(cg_parts(problem, x))
+        sms = _solver_of(problem)
+        out.update(cg_parts(sms, x))
     result = {name: best_us_per_element(fn, n) for name, fn in out.items()}
     if selective:
-        result["cg_solve_per_iteration"] = cg_solve_per_iteration(problem, x)
+        result["cg_solve_per_iteration"] = cg_solve_per_iteration(sms, g, x)
     problem.steps[0].max_cycles = 3
     solver.run(problem, solver.Sink())
     problem.steps[0].max_cycles = 200
@@ -97,7 +98,7 @@ def parts(form: str, mat: str, divisions, threads: int, selective: float | None 
     return result
 
 
-def _solver_of(problem, x):
+def _solver_of(problem):
     """The selective-mass solver of a compiled problem, set up for its first step."""
     from fdeck.engine import solver
 
@@ -106,13 +107,13 @@ def _solver_of(problem, x):
     return next(e for e in problem.effects if getattr(e, "solves_mass", False)).solver
 
 
-def cg_parts(problem, x) -> dict:
-    """The four passes of one conjugate-gradient iteration (``engine.selective_mass.solve``) as callables."""
+def cg_parts(s, x) -> dict:
+    """The four passes of one conjugate-gradient iteration (``engine.selective_mass.solve``) of the solver s as
+    callables, on nodal arrays shaped as x."""
     import numpy as np
 
     from fdeck.engine import selective_mass as sm
 
-    s = _solver_of(problem, x)
     rng = np.random.default_rng(1)
     p, res = rng.standard_normal(x.shape), rng.standard_normal(x.shape)
     q, z, a = np.zeros_like(x), np.zeros_like(x), np.zeros_like(x)
@@ -125,14 +126,13 @@ def cg_parts(problem, x) -> dict:
     }
 
 
-def cg_solve_per_iteration(problem, x) -> float:
-    """Best of three whole solves from zero of r = -f_int(x), per element and iteration [us]."""
+def cg_solve_per_iteration(s, g, x) -> float:
+    """Best of three whole solves by the solver s from zero of r = -f_int(x) of group g, per element and iteration
+    [us]."""
     import numpy as np
 
     from fdeck.engine import selective_mass as sm
 
-    s = _solver_of(problem, x)
-    g = problem.groups[0]
     g.update(x, np.zeros_like(x))
     r = np.zeros_like(x)
     g.add_forces(r)

@@ -587,21 +587,19 @@ def test_raising_a_few_elements_matches_setting_the_whole_step_again():
     Reference: ``set_step`` from scratch with the raised beta (the same sums in another order: agreement to 1e-14
     relative, round-off of sums of at most eight terms), and the all-element ``_kinetic`` with dc on the raised
     elements and zero elsewhere (1e-13 relative: the same per-element values summed in another order)."""
+    from fdeck.compile.mesh import block
     from fdeck.engine.selective_mass import SelectiveMass, _kinetic
 
     rng = np.random.default_rng(3)
-    nx, ny, nz = 6, 5, 2
-    idx = np.arange((nx + 1) * (ny + 1) * (nz + 1)).reshape(nz + 1, ny + 1, nx + 1)
-    conn = np.stack([idx[:-1, :-1, :-1], idx[:-1, :-1, 1:], idx[:-1, 1:, 1:], idx[:-1, 1:, :-1],
-                     idx[1:, :-1, :-1], idx[1:, :-1, 1:], idx[1:, 1:, 1:], idx[1:, 1:, :-1]], -1).reshape(-1, 8)
-    zz, yy, xx = np.meshgrid(np.arange(nz + 1) * 0.6, np.arange(ny + 1) * 4.0, np.arange(nx + 1) * 5.0, indexing="ij")
-    X = np.stack([xx, yy, zz], -1).reshape(-1, 3) + 0.2 * rng.standard_normal((idx.size, 3))  # distorted
-    n_el, n_node = len(conn), idx.size
+    mesh = block([0, 0, 0], [30.0, 20.0, 1.2], [6, 5, 2])
+    conn = mesh.cells["hexahedron"]
+    X = mesh.X + 0.2 * rng.standard_normal(mesh.X.shape)  # distorted
+    n_el, n_node = len(conn), len(X)
     me = rng.uniform(1e-6, 2e-6, n_el)
     m = np.zeros(n_node)
     np.add.at(m, conn.ravel(), np.repeat(me / 8, 8))
     free = np.ones((n_node, 3))
-    free[idx[0].ravel()] = 0.0  # the bottom face prescribed
+    free[mesh.node_sets["zmin"]] = 0.0  # the bottom face prescribed
     beta = rng.uniform(1.0, 5.0, n_el)
     raised = np.array([2, 7, 19, 40])
     dbeta = np.array([3.0, 0.5, 8.0, 1.5])
