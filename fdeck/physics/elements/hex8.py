@@ -272,54 +272,94 @@ def hourglass(x, v, conn, gamma, k_hg, c_hg, fe, e_hg, p_hg):
     k_hg, c_hg (n_el,) [N/mm], [N s/mm]; outputs e_hg (n_el,) stored energy 1/2 k |q|^2 [mJ],
     p_hg (n_el,) viscous dissipation rate c |qdot|^2 [mW].
 
-    Mode by mode, the three components' sums side by side (independent chains), and only the sums the element's
-    hourglass type needs (one of k, c is zero): 0.087 -> 0.060 us per element (measured as in
-    ``_deformation_gradients``). Every sum runs in the same order as component by component, so the bits are the
-    same for finite sums; a skipped sum that is non-finite (a NaN or infinite position or velocity, or an overflow)
-    no longer reaches fe through its zero coefficient as NaN (the engine's monitors catch such states anyway).
+    One pass over the nodes for the four modes' sums (each node's position read once, not once per mode) and one
+    for the forces (each fe[e, a] read and stored once, the four modes added in a register), only the sums the
+    element's hourglass type needs (one of k, c is zero). Every sum and every fe update runs in the same order as
+    mode by mode, so the bits are those of the mode-by-mode loops; a skipped sum that is non-finite (a NaN or
+    infinite position or velocity) does not reach fe through its zero coefficient. Measured with
+    ``benchmarks/kernel_parts.py reduced linear_elastic``: 0.060-0.071 -> 0.049 us per element (docs/kernels.md,
+    item 5).
     """
     for e in prange(conn.shape[0]):
         k = k_hg[e]
         c = c_hg[e]
-        energy = 0.0
-        power = 0.0
-        for m in range(4):
-            q0 = 0.0
-            q1 = 0.0
-            q2 = 0.0
-            r0 = 0.0
-            r1 = 0.0
-            r2 = 0.0
-            if k != 0.0:
-                for a in range(8):
-                    n = conn[e, a]
-                    g = gamma[e, m, a]
-                    q0 += x[n, 0] * g
-                    q1 += x[n, 1] * g
-                    q2 += x[n, 2] * g
-            if c != 0.0:
-                for a in range(8):
-                    n = conn[e, a]
-                    g = gamma[e, m, a]
-                    r0 += v[n, 0] * g
-                    r1 += v[n, 1] * g
-                    r2 += v[n, 2] * g
-            energy += 0.5 * k * q0 * q0
-            power += c * r0 * r0
-            energy += 0.5 * k * q1 * q1
-            power += c * r1 * r1
-            energy += 0.5 * k * q2 * q2
-            power += c * r2 * r2
-            h0 = k * q0 + c * r0
-            h1 = k * q1 + c * r1
-            h2 = k * q2 + c * r2
-            for a in range(8):
-                g = gamma[e, m, a]
-                fe[e, a, 0] += h0 * g
-                fe[e, a, 1] += h1 * g
-                fe[e, a, 2] += h2 * g
-        e_hg[e] = energy
-        p_hg[e] = power
+        s = _hourglass_sums(x, conn, gamma, e) if k != 0.0 else _NO_SUMS
+        r = _hourglass_sums(v, conn, gamma, e) if c != 0.0 else _NO_SUMS
+        e_hg[e] = _squares(0.5 * k, s)
+        p_hg[e] = _squares(c, r)
+        h00, h01, h02 = k * s[0] + c * r[0], k * s[1] + c * r[1], k * s[2] + c * r[2]
+        h10, h11, h12 = k * s[3] + c * r[3], k * s[4] + c * r[4], k * s[5] + c * r[5]
+        h20, h21, h22 = k * s[6] + c * r[6], k * s[7] + c * r[7], k * s[8] + c * r[8]
+        h30, h31, h32 = k * s[9] + c * r[9], k * s[10] + c * r[10], k * s[11] + c * r[11]
+        for a in range(8):
+            g0, g1, g2, g3 = gamma[e, 0, a], gamma[e, 1, a], gamma[e, 2, a], gamma[e, 3, a]
+            f0 = fe[e, a, 0]
+            f1 = fe[e, a, 1]
+            f2 = fe[e, a, 2]
+            f0 += h00 * g0
+            f1 += h01 * g0
+            f2 += h02 * g0
+            f0 += h10 * g1
+            f1 += h11 * g1
+            f2 += h12 * g1
+            f0 += h20 * g2
+            f1 += h21 * g2
+            f2 += h22 * g2
+            f0 += h30 * g3
+            f1 += h31 * g3
+            f2 += h32 * g3
+            fe[e, a, 0] = f0
+            fe[e, a, 1] = f1
+            fe[e, a, 2] = f2
+
+
+_NO_SUMS = (0.0,) * 12
+
+
+@_inline
+def _squares(scale, q):
+    """sum_i scale q_i q_i over a 12-tuple, in order from zero (as the mode-by-mode loops summed it)."""
+    t = 0.0
+    t += scale * q[0] * q[0]
+    t += scale * q[1] * q[1]
+    t += scale * q[2] * q[2]
+    t += scale * q[3] * q[3]
+    t += scale * q[4] * q[4]
+    t += scale * q[5] * q[5]
+    t += scale * q[6] * q[6]
+    t += scale * q[7] * q[7]
+    t += scale * q[8] * q[8]
+    t += scale * q[9] * q[9]
+    t += scale * q[10] * q[10]
+    t += scale * q[11] * q[11]
+    return t
+
+
+@_inline
+def _hourglass_sums(y, conn, gamma, e):
+    """The four modes' sums sum_a y_a gamma_alpha,a of nodal values y (n_node, 3) for element e, as a 12-tuple
+    (mode-major: alpha 0 x, y, z, alpha 1 x, ...), each summed over the nodes in order from zero."""
+    q00 = q01 = q02 = q10 = q11 = q12 = q20 = q21 = q22 = q30 = q31 = q32 = 0.0
+    for a in range(8):
+        n = conn[e, a]
+        y0, y1, y2 = y[n, 0], y[n, 1], y[n, 2]
+        g = gamma[e, 0, a]
+        q00 += y0 * g
+        q01 += y1 * g
+        q02 += y2 * g
+        g = gamma[e, 1, a]
+        q10 += y0 * g
+        q11 += y1 * g
+        q12 += y2 * g
+        g = gamma[e, 2, a]
+        q20 += y0 * g
+        q21 += y1 * g
+        q22 += y2 * g
+        g = gamma[e, 3, a]
+        q30 += y0 * g
+        q31 += y1 * g
+        q32 += y2 * g
+    return (q00, q01, q02, q10, q11, q12, q20, q21, q22, q30, q31, q32)
 
 
 @njit_parallel
