@@ -109,6 +109,12 @@ def assemble_cells(problem) -> dict[str, np.ndarray]:
     return out
 
 
+def cell_max(point_field: np.ndarray, cells: dict[str, np.ndarray]) -> np.ndarray:
+    """Per cell (concatenated over cell types in ``cells`` order), the largest finite value of point_field (n_node,)
+    at its nodes; NaN where every node is NaN (off the surface the field covers)."""
+    return np.concatenate([np.fmax.reduce(point_field[conn], axis=1) for conn in cells.values()])
+
+
 def write_end_tables(problem, paths, out_dir: Path, x) -> list[str]:
     """Write the path tables (``paths``: PathTable list) and, if the deck asks, fibres.csv at positions x
     (n_node, 3) into out_dir; the groups must hold the state at x. Returns the file names written."""
@@ -135,7 +141,8 @@ class Outputs(solver.Sink):
     (``output.paths``, ``output.fibre_table``).
 
     Each frame also carries the point fields of the measures that have some (``point_fields(x) -> {name: (n_node,)
-    array}``, e.g. ``wrinkle``; two measures giving the same name are merged with fmax) and the surfaces of the
+    array}``, e.g. ``wrinkle``; two measures giving the same name are merged with fmax), each also as the cell field
+    ``<name>_element`` (the largest value at the element's nodes, ``cell_max``), and the surfaces of the
     effects that have bodies (``Effect.surfaces()``: rigid tools), written as blocks of their own."""
 
     def __init__(self, problem, out_dir: Path, name: str, progress, digests: dict | None = None,
@@ -173,12 +180,16 @@ class Outputs(solver.Sink):
         point = {"displacement": x - self.problem.X, "velocity": v.copy()}
         for name, val in (point_fields or {}).items():
             point[name] = np.array(val, copy=True)
+        measured = set()
         for m in self.problem.measures:
             for name, val in (m.point_fields(x) if hasattr(m, "point_fields") else {}).items():
                 point[name] = np.fmax(point[name], val) if name in point else np.array(val, copy=True)
+                measured.add(name)
         surfaces = [s for e in self.problem.effects for s in e.surfaces()]
         with np.errstate(invalid="ignore", divide="ignore"):  # an inverted element's last frame holds NaN by design
             cells = assemble_cells(self.problem)
+        for name in measured:  # a measure's nodal field also per element (the largest of its nodes), "<name>_element"
+            cells[f"{name}_element"] = cell_max(point[name], self.problem.cells)
         for s in self.series:
             s.write(t, point, cells, surfaces=surfaces)
         self.frames_written += 1

@@ -369,6 +369,22 @@ def test_wrinkle_indicator_of_a_ripple_is_its_amplitude(wrinkle_problem):
     assert np.all(np.isnan(field[~on])) and np.nanmax(field[on]) == vals["wr_max"]
 
 
+def test_a_measure_field_per_element_is_the_largest_at_its_nodes():
+    """Requirement: the cell field ``wrinkle_element`` (``run.cell_max``) is, element by element, the largest finite
+    value of the nodal field at the element's nodes, NaN where all are NaN, over cell types in order: checked
+    exactly (a max picks one of the values) against a loop over the elements on a hexahedron and a quad block."""
+    from fdeck.run import cell_max
+
+    rng = np.random.default_rng(5)
+    field = rng.uniform(0.0, 1.0, 12)
+    field[[0, 1, 2, 3, 4, 5, 6, 7]] = np.nan  # the hexahedron's nodes: all NaN
+    field[9] = np.nan
+    cells = {"hexahedron": np.array([[0, 1, 2, 3, 4, 5, 6, 7]]), "quad": np.array([[8, 9, 10, 11], [9, 10, 11, 0]])}
+    got = cell_max(field, cells)
+    expected = [np.nan] + [max(v for v in field[c] if np.isfinite(v)) for c in cells["quad"]]
+    np.testing.assert_array_equal(got, expected)
+
+
 def test_wrinkle_radius_too_small_is_a_located_error():
     """Requirement: a patch radius holding fewer than 9 nodes anywhere is a CompileError at `radius`."""
     data = _plate((10.0, 10.0), 2.0, {"measures": [{"type": "wrinkles", "name": "wr", "nodes": "all",

@@ -22,7 +22,8 @@ more curved than a half sphere has no single-valued height and is not meaningful
 Recorded: the largest value and the 99th percentile over the set (``<name>_max``, ``<name>_p99``) and over each
 named region (``<name>_<region>_max``, ``<name>_<region>_p99``; a region is a node set, else the nodes of an
 element set, intersected with the surface), and the per-node value as the frame point field ``wrinkle``
-(NaN off the surface and at nodes whose patch is too small).
+(NaN off the surface and at nodes whose patch is too small), per element as the cell field ``wrinkle_element``
+(the largest value at its nodes; written by ``fdeck.run.Outputs``).
 """
 
 from __future__ import annotations
