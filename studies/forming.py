@@ -86,11 +86,13 @@ def render(result_dir, png, field: str = "shear_angle", view: str = "top", title
     from matplotlib.collections import PolyCollection
 
     mesh = meshio.read(blank_frames(Path(result_dir))[frame])
+    if field not in mesh.cell_data:
+        raise SystemExit(f"render: no cell field '{field}' in the frame; it has {sorted(mesh.cell_data)}")
     x = mesh.points + (mesh.point_data["displacement"] if "displacement" in mesh.point_data else 0.0)
     h, v, d = VIEWS[view]
     polys, values, depth = [], [], []
     for k, block in enumerate(mesh.cells):
-        data = mesh.cell_data[field][k] if field in mesh.cell_data else np.full(len(block.data), np.nan)
+        data = mesh.cell_data[field][k]
         data = np.asarray(data, float).reshape(len(block.data), -1)[:, 0]
         for conn, val in zip(block.data, data):
             p = x[conn]
