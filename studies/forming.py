@@ -76,8 +76,9 @@ def hull(points: np.ndarray) -> np.ndarray:
 
 def render(result_dir, png, field: str = "shear_angle", view: str = "top", title: str | None = None,
            limits: tuple[float, float] | None = None, frame: int = -1) -> dict:
-    """Draw the blank at frame ``frame`` (default the last) coloured by ``field``; returns {min, max, mean} of the
-    field over the drawn cells. ``limits``: the colour range (default the field's), to set two runs side by side."""
+    """Draw the blank at frame ``frame`` (default the last) coloured by ``field`` (a cell field, or a point field
+    drawn as the largest value at each cell's nodes, e.g. ``wrinkle``); returns {min, max, mean} of the field
+    over the drawn cells. ``limits``: the colour range (default the field's), to set two runs side by side."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -86,8 +87,14 @@ def render(result_dir, png, field: str = "shear_angle", view: str = "top", title
     from matplotlib.collections import PolyCollection
 
     mesh = meshio.read(blank_frames(Path(result_dir))[frame])
+    if field not in mesh.cell_data and field in mesh.point_data:  # a nodal field: the largest at each cell's nodes
+        from fdeck.run import cell_max
+
+        values = np.asarray(mesh.point_data[field], float).reshape(len(mesh.points), -1)[:, 0]
+        mesh.cell_data[field] = [cell_max(values, {b.type: b.data}) for b in mesh.cells]
     if field not in mesh.cell_data:
-        raise SystemExit(f"render: no cell field '{field}' in the frame; it has {sorted(mesh.cell_data)}")
+        raise SystemExit(f"render: no field '{field}' in the frame; it has cell fields {sorted(mesh.cell_data)} and "
+                         f"point fields {sorted(mesh.point_data)}")
     x = mesh.points + (mesh.point_data["displacement"] if "displacement" in mesh.point_data else 0.0)
     h, v, d = VIEWS[view]
     polys, values, depth = [], [], []
