@@ -128,6 +128,35 @@ def render(result_dir, png, field: str = "shear_angle", view: str = "top", title
         else {}
 
 
+def waves(result_dir, at, start: float, frame: int = -1, tol: float = 0.1) -> list[dict]:
+    """Out-of-plane profile of the blank along reference lines y = a (a in ``at``) from x = ``start`` on, at frame
+    ``frame``: per line the nodes' current z less its straight-line fit, its rms and peak-to-peak [mm], the
+    dominant wavelength [mm] (largest Fourier component) and the share of the variance at wavelengths shorter than
+    three node spacings (about 0 for a wave resolved by many nodes, 1 for a zig-zag from node to node, about 1/3
+    for nodes scattered at random). For a flange held between tools: tells a wave from element-scale rattling,
+    which the wrinkle indicator cannot (a wave longer than about 2R scores little, a zig-zag of any amplitude
+    scores it)."""
+    import meshio
+
+    mesh = meshio.read(blank_frames(Path(result_dir))[frame])
+    X = mesh.points
+    x = X + mesh.point_data["displacement"]
+    out = []
+    for a in at:
+        sel = np.where((np.abs(X[:, 1] - a) < tol) & (X[:, 0] >= start))[0]
+        sel = sel[np.argsort(X[sel, 0])]
+        s, z = X[sel, 0], x[sel, 2]
+        dz = z - np.polyval(np.polyfit(s, z, 1), s)
+        power = np.abs(np.fft.rfft(dz)) ** 2
+        n = len(dz)
+        span = (s[-1] - s[0]) * n / (n - 1)  # the period the transform assumes [mm]
+        k = 1 + int(np.argmax(power[1:]))
+        short = np.arange(len(power)) > span / (3.0 * (s[1] - s[0]))  # wavelength span / k below 3 spacings
+        out.append({"y": a, "nodes": n, "rms": float(np.sqrt(np.mean(dz**2))), "peak_to_peak": float(np.ptp(dz)),
+                    "wavelength": float(span / k), "short_share": float(power[short].sum() / power[1:].sum())})
+    return out
+
+
 def force(result_dirs, png, tool: str = "punch") -> None:
     """Force of ``tool`` on the blank (z component, sign so that pressing is positive) against its travel."""
     import matplotlib
@@ -324,6 +353,11 @@ def parser() -> argparse.ArgumentParser:
     el.add_argument("frames", help="frame indices, comma-separated (0 = the initial frame)")
     el.add_argument("--box", type=float, help="only elements with reference |x|, y below this [mm]")
     el.add_argument("--preset", default="3weave")
+    wa = sub.add_parser("waves")
+    wa.add_argument("result_dir")
+    wa.add_argument("--at", type=float, nargs="+", required=True, help="reference y of each line [mm]")
+    wa.add_argument("--start", type=float, default=0.0, help="reference x where the lines start [mm]")
+    wa.add_argument("--frame", type=int, default=-1)
     ro = sub.add_parser("rows")
     ro.add_argument("name", help="path name (output.paths[].name), element-wise (no window)")
     ro.add_argument("result_dirs", nargs="+")
@@ -355,6 +389,11 @@ def main() -> None:
             print(f"{d}: shear per element along {a.name} " + " ".join(f"{v:.1f}" for v in g))
             print(f"  second difference up to {a.until:g} mm: rms {near:.1f} deg, largest {big:.1f} deg; "
                   f"beyond: rms {far:.1f} deg")
+    elif a.cmd == "waves":
+        for w in waves(a.result_dir, a.at, a.start, a.frame):
+            print(f"y = {w['y']:g} mm ({w['nodes']} nodes): rms {w['rms']:.3f} mm, peak to peak "
+                  f"{w['peak_to_peak']:.3f} mm, dominant wavelength {w['wavelength']:.1f} mm, "
+                  f"{100 * w['short_share']:.0f} % of the variance below 3 node spacings")
     elif a.cmd == "force":
         force(a.paths[:-1], a.paths[-1], a.tool)
     else:
