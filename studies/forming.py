@@ -129,7 +129,8 @@ def render(result_dir, png, field: str = "shear_angle", view: str = "top", title
 
 
 def waves(result_dir, at, start: float, frame: int = -1, tol: float = 0.1) -> list[dict]:
-    """Out-of-plane profile of the blank along reference lines y = a (a in ``at``) from x = ``start`` on, at frame
+    """Out-of-plane profile of the blank along reference lines y = a (a in ``at``; the nearest row of nodes) from
+    x = ``start`` on, at frame
     ``frame``: per line the nodes' current z less its straight-line fit, its rms and peak-to-peak [mm], the
     dominant wavelength [mm] (largest Fourier component) and the share of the variance at wavelengths shorter than
     three node spacings (about 0 for a wave resolved by many nodes, 1 for a zig-zag from node to node, about 1/3
@@ -143,7 +144,10 @@ def waves(result_dir, at, start: float, frame: int = -1, tol: float = 0.1) -> li
     x = X + mesh.point_data["displacement"]
     out = []
     for a in at:
+        a = X[np.argmin(np.abs(X[:, 1] - a)), 1]  # the row of nodes nearest to the line asked for
         sel = np.where((np.abs(X[:, 1] - a) < tol) & (X[:, 0] >= start))[0]
+        if len(sel) < 4:
+            raise SystemExit(f"waves: {len(sel)} nodes at y = {a:g} mm from x = {start:g} mm on: too few for a profile")
         sel = sel[np.argsort(X[sel, 0])]
         s, z = X[sel, 0], x[sel, 2]
         dz = z - np.polyval(np.polyfit(s, z, 1), s)
@@ -152,7 +156,7 @@ def waves(result_dir, at, start: float, frame: int = -1, tol: float = 0.1) -> li
         span = (s[-1] - s[0]) * n / (n - 1)  # the period the transform assumes [mm]
         k = 1 + int(np.argmax(power[1:]))
         short = np.arange(len(power)) > span / (3.0 * (s[1] - s[0]))  # wavelength span / k below 3 spacings
-        out.append({"y": a, "nodes": n, "rms": float(np.sqrt(np.mean(dz**2))), "peak_to_peak": float(np.ptp(dz)),
+        out.append({"y": float(a), "nodes": n, "rms": float(np.sqrt(np.mean(dz**2))), "peak_to_peak": float(np.ptp(dz)),
                     "wavelength": float(span / k), "short_share": float(power[short].sum() / power[1:].sum())})
     return out
 
