@@ -9,7 +9,8 @@
    short constant lane loop is unrolled and left scalar; only the loop vectoriser remains, for long trip counts.
 2. The hexahedron's hourglass forces (stiffness type) as today (one element at a time) and in blocks of 64
    elements with the lanes innermost (conn, gamma and the forces transposed per block): time per element (best of
-   7 x 50 calls, one thread, 12 800 elements) and whether the two give the same bits.
+   7 x 50 calls, one thread, 12 800 elements) and whether the two give the same bits (forces and stored energy;
+   the probe's blocked version has the stiffness type only).
 """
 
 from __future__ import annotations

@@ -180,11 +180,11 @@ class Outputs(solver.Sink):
         point = {"displacement": x - self.problem.X, "velocity": v.copy()}
         for name, val in (point_fields or {}).items():
             point[name] = np.array(val, copy=True)
-        measured = set()
+        measured = {}  # names in the measures' order (a set's order would vary with the hash seed)
         for m in self.problem.measures:
             for name, val in (m.point_fields(x) if hasattr(m, "point_fields") else {}).items():
                 point[name] = np.fmax(point[name], val) if name in point else np.array(val, copy=True)
-                measured.add(name)
+                measured[name] = None
         surfaces = [s for e in self.problem.effects for s in e.surfaces()]
         with np.errstate(invalid="ignore", divide="ignore"):  # an inverted element's last frame holds NaN by design
             cells = assemble_cells(self.problem)

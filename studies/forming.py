@@ -8,6 +8,7 @@
     python studies/forming.py mirror RESULT_DIR       # full model: how far each frame's shear is from mirror symmetry
     python studies/forming.py ellipticity RESULT_DIR FRAMES [--box B] [--preset 3weave]  # elements past the law's limit
     python studies/forming.py rows PATH_NAME RESULT_DIR... [--until S]  # element-to-element alternation along a path
+    python studies/forming.py waves RESULT_DIR --at Y... [--start X0] [--frame K]  # a shell flange's profile
 
 `render` reads a blank frame of a run's `.pvd` (the last, or ``--frame K``; the blank is part 0, tools are other
 parts), draws every element as the polygon of its nodes projected on the view plane (their 2-D convex hull),
@@ -33,7 +34,9 @@ h^2 gamma'' for a field that is smooth on the element scale h, as large as the j
 neighbouring element rows alternate. `ellipticity` evaluates the fabric law at each element's centre deformation
 gradient (from the frame's displacements; elements whose reference centroid has |x|, y < B) and counts those
 whose acoustic tensor has lost strong ellipticity (smallest eigenvalue over 48 unit directions, 36 in the fibre
-plane, below zero; tangent by central differences of the point kernel).
+plane, below zero; tangent by central differences of the point kernel). `waves` takes a shell blank's
+out-of-plane profile along rows of nodes (reference y nearest to each Y, from x = X0 on) and prints its rms,
+dominant wavelength and the share of its variance below three node spacings: a wave from node-scale scatter.
 """
 
 from __future__ import annotations
@@ -150,14 +153,20 @@ def waves(result_dir, at, start: float, frame: int = -1, tol: float = 0.1) -> li
             raise SystemExit(f"waves: {len(sel)} nodes at y = {a:g} mm from x = {start:g} mm on: too few for a profile")
         sel = sel[np.argsort(X[sel, 0])]
         s, z = X[sel, 0], x[sel, 2]
+        step = np.diff(s)
+        if np.ptp(step) > 1e-6 * step.mean() or step.min() <= 0.0:  # a stack of layers, or a graded mesh
+            raise SystemExit(f"waves: the nodes at y = {a:g} mm are not one evenly spaced row (a shell blank's "
+                             "mid-surface is; a hexahedral stack is not)")
         dz = z - np.polyval(np.polyfit(s, z, 1), s)
-        power = np.abs(np.fft.rfft(dz)) ** 2
         n = len(dz)
-        span = (s[-1] - s[0]) * n / (n - 1)  # the period the transform assumes [mm]
+        rms = float(np.sqrt(np.mean(dz**2)))
+        power = np.abs(np.fft.rfft(dz)) ** 2
+        flat = rms <= 1e-12 * (s[-1] - s[0])  # a straight line: no wavelength to speak of
         k = 1 + int(np.argmax(power[1:]))
-        short = np.arange(len(power)) > span / (3.0 * (s[1] - s[0]))  # wavelength span / k below 3 spacings
-        out.append({"y": float(a), "nodes": n, "rms": float(np.sqrt(np.mean(dz**2))), "peak_to_peak": float(np.ptp(dz)),
-                    "wavelength": float(span / k), "short_share": float(power[short].sum() / power[1:].sum())})
+        short = 3 * np.arange(len(power)) > n  # wavelength n h / k below three spacings h
+        out.append({"y": float(a), "nodes": n, "rms": rms, "peak_to_peak": float(np.ptp(dz)),
+                    "wavelength": np.nan if flat else float(n * step.mean() / k),
+                    "short_share": np.nan if flat else float(power[short].sum() / power[1:].sum())})
     return out
 
 

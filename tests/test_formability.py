@@ -385,6 +385,31 @@ def test_a_measure_field_per_element_is_the_largest_at_its_nodes():
     np.testing.assert_array_equal(got, expected)
 
 
+def test_frames_carry_the_wrinkle_indicator_per_element(wrinkle_problem, tmp_path):
+    """Requirement: a run's frame holds the nodal ``wrinkle`` and, per element, ``wrinkle_element``, the largest
+    finite nodal value at the element's nodes (NaN where all are NaN), aligned with the frame's cells: a frame
+    written by ``run.Outputs`` for the rippled cap (shell plate, and hexahedra whose top face is the surface) and
+    read back with meshio, checked exactly against a loop over the cells (a max picks one of the values)."""
+    import meshio
+
+    from fdeck.run import Outputs
+
+    p = wrinkle_problem
+    x = _cap(p.X, "sphere")
+    x[:, 2] += A * np.sin(2 * np.pi * p.X[:, 1] / WAVE)
+    out = Outputs(p, tmp_path, "b", progress=None)
+    out.frame(0.0, x, np.zeros_like(x))
+    for series in out.series:
+        series.close()
+    mesh = meshio.read(next(tmp_path.glob("b_00000.vtu")))
+    node = mesh.point_data["wrinkle"]
+    cell = np.concatenate(mesh.cell_data["wrinkle_element"])
+    conn = np.concatenate([block.data for block in mesh.cells])
+    expected = [np.nanmax(node[c]) if np.isfinite(node[c]).any() else np.nan for c in conn]
+    assert np.isfinite(cell).sum() > 0 and np.isnan(cell).sum() == np.isnan(expected).sum()
+    np.testing.assert_array_equal(cell, expected)
+
+
 def test_wrinkle_radius_too_small_is_a_located_error():
     """Requirement: a patch radius holding fewer than 9 nodes anywhere is a CompileError at `radius`."""
     data = _plate((10.0, 10.0), 2.0, {"measures": [{"type": "wrinkles", "name": "wr", "nodes": "all",
@@ -532,7 +557,9 @@ def test_flange_waves_tell_a_resolved_wave_from_node_scale_scatter(tmp_path):
       period is 33 spacings, 82.5 mm, whose 4th harmonic is 20.6 mm), short share below 1 % (measured 0.85 %,
       leakage of the line's unmatched ends);
     * a node-to-node zig-zag +-A: rms within 1 % of A (measured -0.05 %), short share above 0.95 (measured 0.964;
-      the odd node count leaks a little to longer wavelengths)."""
+      the odd node count leaks a little to longer wavelengths);
+    * a line asked for between rows takes the nearest row; the dominant wavelength is exactly the transform's
+      harmonic 33 x 2.5 / 4 mm (to round-off)."""
     h, n = 2.5, 33
     X = np.array([[i * h, j * h, 0.0] for j in range(2) for i in range(n)])
     quads = np.array([[i, i + 1, n + i + 1, n + i] for i in range(n - 1)])
@@ -551,5 +578,7 @@ def test_flange_waves_tell_a_resolved_wave_from_node_scale_scatter(tmp_path):
     w, z = out["wave"], out["zigzag"]
     assert w["nodes"] == z["nodes"] == n
     assert w["rms"] == pytest.approx(0.3 / np.sqrt(2), rel=0.05) and w["wavelength"] == pytest.approx(20.0, rel=0.05)
+    assert w["wavelength"] == pytest.approx(n * h / 4, rel=1e-12)  # the transform's 4th harmonic, 82.5 / 4 mm
+    assert forming.waves(tmp_path / "wave", [1.0], 0.0) == [w]  # y = 1 mm: the nearest row of nodes, y = 0
     assert w["short_share"] < 0.01
     assert z["rms"] == pytest.approx(0.3, rel=0.01) and z["short_share"] > 0.95

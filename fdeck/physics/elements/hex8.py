@@ -277,8 +277,8 @@ def hourglass(x, v, conn, gamma, k_hg, c_hg, fe, e_hg, p_hg):
     element's hourglass type needs (one of k, c is zero). Every sum and every fe update runs in the same order as
     mode by mode, so the bits are those of the mode-by-mode loops; a skipped sum that is non-finite (a NaN or
     infinite position or velocity) does not reach fe through its zero coefficient. Measured with
-    ``benchmarks/kernel_parts.py reduced linear_elastic``: 0.060-0.071 -> 0.049 us per element (docs/kernels.md,
-    item 5).
+    ``benchmarks/kernel_parts.py reduced linear_elastic``: 0.060-0.071 -> 0.049 us per element on a machine loaded by
+    two other runs (docs/kernels.md, item 5).
     """
     for e in prange(conn.shape[0]):
         k = k_hg[e]
