@@ -16,7 +16,6 @@
 from __future__ import annotations
 
 import sys
-import time
 from pathlib import Path
 
 import numba
@@ -24,8 +23,10 @@ import numpy as np
 from numba import njit, prange
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from fdeck.compile.mesh import block  # noqa: E402
+from kernel_parts import best_us_per_element  # noqa: E402
 from fdeck.physics.elements import hex8  # noqa: E402
 
 FLAGS = dict(boundscheck=False, error_model="numpy", fastmath=False)
@@ -81,17 +82,6 @@ def hourglass_blocks(x, conn_t, gamma_t, k, fe_t, e_hg, lanes):
                     fe_t[b, a, c, l] = f
 
 
-def best_us(fn, args, n: int) -> float:
-    fn(*args)
-    best = float("inf")
-    for _ in range(7):
-        t0 = time.perf_counter()
-        for _ in range(50):
-            fn(*args)
-        best = min(best, (time.perf_counter() - t0) / 50)
-    return 1e6 * best / n
-
-
 def main() -> None:
     numba.set_num_threads(1)
     print(f"numba {numba.__version__}, SLP vectoriser {'on' if numba.config.SLP_VECTORIZE else 'off'}")
@@ -116,8 +106,10 @@ def main() -> None:
     fe_t, e_t = np.zeros((nb, 8, 3, lanes)), np.zeros((nb, lanes))
     args_t = (x, conn_t, gamma_t, np.ascontiguousarray(k.reshape(nb, lanes)), fe_t, e_t, lanes)
     for _ in range(2):
-        print(f"hourglass, {n} elements, 1 thread: one element at a time {best_us(hex8.hourglass, args, n):.4f} us, "
-              f"blocks of {lanes} {best_us(hourglass_blocks, args_t, n):.4f} us per element")
+        one = best_us_per_element(lambda: hex8.hourglass(*args), n, calls=50, repeats=7)
+        blocked = best_us_per_element(lambda: hourglass_blocks(*args_t), n, calls=50, repeats=7)
+        print(f"hourglass, {n} elements, 1 thread: one element at a time {one:.4f} us, "
+              f"blocks of {lanes} {blocked:.4f} us per element")
     fe[:] = 0.0
     fe_t[:] = 0.0
     hex8.hourglass(*args)
