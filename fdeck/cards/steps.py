@@ -1,4 +1,5 @@
-"""Cards of the step settings that the engine runs as effects (``physics.effects.damping``, ``bulk_viscosity``)."""
+"""Cards of the step settings that the engine runs as effects (``physics.effects.damping``,
+``deformation_damping``, ``bulk_viscosity``)."""
 
 from __future__ import annotations
 
@@ -13,6 +14,14 @@ class Damping(Card):
                                      "angular frequency w critically.")
 
 
+class DeformationDamping(Card):
+    """Viscous force on each element's nodal velocities relative to its rigid-body motion
+    (``physics.effects.deformation_damping``): no drag on rigid sliding or rotation."""
+
+    rate: float = Field(gt=0, description="c in f_a = -c w_a v_def,a [1/s]: the rate at which element-scale "
+                        "deformation is damped (a mode of wavelength lambda about c (h / lambda)^2).")
+
+
 class BulkViscosity(Card):
     """Viscous pressure on the volumetric strain rate of solid elements (Abaqus *BULK VISCOSITY defaults)."""
 
@@ -22,4 +31,5 @@ class BulkViscosity(Card):
 
 
 register_card(CardEntry("damping", Damping, "effect", "step"))
+register_card(CardEntry("deformation_damping", DeformationDamping, "effect", "step"))
 register_card(CardEntry("bulk_viscosity", BulkViscosity, "effect", "step"))

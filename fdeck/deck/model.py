@@ -18,7 +18,7 @@ from fdeck.deck.base import Card
 from fdeck.deck.errors import unknown_name
 from fdeck.cards.contact import Contact, Tool
 from fdeck.cards.checkpoint import Checkpoint
-from fdeck.cards.steps import BulkViscosity, Damping
+from fdeck.cards.steps import BulkViscosity, Damping, DeformationDamping
 from fdeck.cards.mass_scaling import MassScaling
 from fdeck.cards.subcycling import Subcycling
 from fdeck.deck.section import SectionBase
@@ -220,6 +220,8 @@ class Step(Card):
     dt_safety: float = Field(0.9, gt=0, le=1.0, description="Time step = dt_safety x smallest element step.")
     mass_scaling: MassScaling | None = None
     damping: Damping | None = None
+    deformation_damping: DeformationDamping | None = Field(None, description="Damping of each element's motion "
+                                                           "relative to its rigid-body motion; none when absent.")
     bulk_viscosity: BulkViscosity | None = Field(None, description="Bulk viscosity in this step ({} for the "
                                                  "defaults b1 = 0.06, b2 = 1.2); none when absent.")
     subcycling: Subcycling | None = Field(None, description="Node steps in powers of two of the smallest in this "

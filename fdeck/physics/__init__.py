@@ -10,3 +10,4 @@ from fdeck.physics.measures import draw_in, wrinkles  # noqa: F401
 from fdeck.physics.elements import hex8_ans, hex8_ans_fbar  # noqa: F401
 from fdeck.physics.effects import selective_mass  # noqa: F401
 from fdeck.physics.effects import subcycling  # noqa: F401
+from fdeck.physics.effects import deformation_damping  # noqa: F401

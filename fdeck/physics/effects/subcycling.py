@@ -97,6 +97,8 @@ def build(cards: list, ctx) -> SubcyclingEffect | None:
             refuse(f"steps[{i}] uses selective mass scaling")
         if s.damping is not None:
             refuse(f"steps[{i}] has damping")
+        if s.deformation_damping is not None:
+            refuse(f"steps[{i}] has deformation damping")
         if s.bulk_viscosity is not None:
             refuse(f"steps[{i}] has bulk viscosity")
     if deck.output.checkpoint is not None:

@@ -1,0 +1,170 @@
+"""Deformation damping: a viscous force on each element's nodal velocities relative to its rigid-body motion.
+
+Mass-proportional damping (``steps[i].damping``) drags every velocity, including the rigid sliding of a flange
+being drawn in: on the square tube it takes about 40 % of the work (README, *Forming*). This effect damps only
+what deforms the element. Per element e with nodes a, weights w_a = m_a / k_a (the node's lumped mass of the step
+shared among the k_a elements that hold it, so that the weights of all elements sum to the lumped mass), the
+velocities are split into the element's weighted rigid motion (translation of the weighted centre plus a spin w
+from the least-squares fit of the angular momentum, I w = L) and the rest:
+
+    v_def,a = v_a - v_c - w x (x_a - x_c)         f_a = -c w_a v_def,a         power_e = -c sum_a w_a |v_def,a|^2
+
+The split is a projection orthogonal in the weights, so the forces of each element have zero resultant and zero
+moment (momentum and angular momentum are untouched), rigid motion at any speed and orientation feels nothing
+(objective), and the power is never positive: the engine books it as damping dissipation. A wave of wavelength
+lambda moves the nodes of an element of size h relative to each other by about pi h / lambda of its velocity, so it
+decays as mass-proportional damping of rate alpha = c pi^2 (h / lambda)^2 would (a stretching wave; a transverse one
+on cube-shaped elements half that, the spin taking the rest), while a node-to-node zig-zag (lambda = 2 h) is damped
+at c (c / 2 transverse): ``tests/test_deformation_damping.py``. So element-scale oscillation (the fibre switch of
+``fabric_membrane``, node-to-node flutter) is damped at about the rate c, long waves and rigid motion hardly: in
+this it acts like stiffness-proportional Rayleigh damping (LS-DYNA *DAMPING_PART_STIFFNESS, Abaqus beta), whose
+rate also grows as 1 / lambda^2 for non-dispersive waves, without a second evaluation of the material law.
+
+Step: M^-1 C is bounded by c, so a mode of angular frequency omega has a damping ratio of at most c / (2 omega), and
+the damped central-difference limit (2 / omega)(sqrt(1 + xi^2) - xi) falls with omega: the fastest mode of an
+element, omega = 2 / dt_e, binds, and the step becomes dt_e (sqrt(1 + xi^2) - xi) with xi = c dt_e / 4.
+
+Translations only: shells' rotational velocities are not damped by it (the step's mass-proportional damping, if
+any, still acts on them). A step setting (``steps[i].deformation_damping``): built only when a step asks for it.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from fdeck.engine.effect import Effect
+from fdeck.engine.gather import gather_add
+from fdeck.jit import njit_parallel, prange
+from fdeck.registry import EffectKind, register_effect
+
+
+@njit_parallel
+def relative_forces(x, v, conn, w_node, c, fe, power):
+    """fe (n_el, n, 3) damping forces [N] and power (n_el,) [mW] (<= 0) of the elements conn (n_el, n).
+
+    x, v (n_node, 3) [mm, mm/s]; w_node (n_node,) nodal weights m_a / k_a [t]; c the damping rate [1/s]. An element
+    whose nodes are collinear (no spin can be fitted: det I <= 1e-12 of its scale) keeps its translation only.
+    """
+    n = conn.shape[1]
+    for e in prange(conn.shape[0]):
+        W = 0.0
+        xc0 = xc1 = xc2 = vc0 = vc1 = vc2 = 0.0
+        for a in range(n):
+            k = conn[e, a]
+            wa = w_node[k]
+            W += wa
+            xc0 += wa * x[k, 0]
+            xc1 += wa * x[k, 1]
+            xc2 += wa * x[k, 2]
+            vc0 += wa * v[k, 0]
+            vc1 += wa * v[k, 1]
+            vc2 += wa * v[k, 2]
+        if W <= 0.0:
+            for a in range(n):
+                fe[e, a, 0] = fe[e, a, 1] = fe[e, a, 2] = 0.0
+            power[e] = 0.0
+            continue
+        xc0 /= W
+        xc1 /= W
+        xc2 /= W
+        vc0 /= W
+        vc1 /= W
+        vc2 /= W
+        # angular momentum about the centre L = sum w r x u and inertia I = sum w (|r|^2 1 - r r^T)
+        L0 = L1 = L2 = 0.0
+        i00 = i11 = i22 = i01 = i02 = i12 = 0.0
+        for a in range(n):
+            k = conn[e, a]
+            wa = w_node[k]
+            r0, r1, r2 = x[k, 0] - xc0, x[k, 1] - xc1, x[k, 2] - xc2
+            u0, u1, u2 = v[k, 0] - vc0, v[k, 1] - vc1, v[k, 2] - vc2
+            L0 += wa * (r1 * u2 - r2 * u1)
+            L1 += wa * (r2 * u0 - r0 * u2)
+            L2 += wa * (r0 * u1 - r1 * u0)
+            i00 += wa * (r1 * r1 + r2 * r2)
+            i11 += wa * (r0 * r0 + r2 * r2)
+            i22 += wa * (r0 * r0 + r1 * r1)
+            i01 -= wa * r0 * r1
+            i02 -= wa * r0 * r2
+            i12 -= wa * r1 * r2
+        # w = I^-1 L by cofactors (I symmetric)
+        c00, c11, c22 = i11 * i22 - i12 * i12, i00 * i22 - i02 * i02, i00 * i11 - i01 * i01
+        c01, c02, c12 = i02 * i12 - i01 * i22, i01 * i12 - i02 * i11, i01 * i02 - i00 * i12
+        det = i00 * c00 + i01 * c01 + i02 * c02
+        scale = i00 + i11 + i22
+        w0 = w1 = w2 = 0.0
+        if det > 1e-12 * scale * scale * scale:
+            w0 = (c00 * L0 + c01 * L1 + c02 * L2) / det
+            w1 = (c01 * L0 + c11 * L1 + c12 * L2) / det
+            w2 = (c02 * L0 + c12 * L1 + c22 * L2) / det
+        p = 0.0
+        for a in range(n):
+            k = conn[e, a]
+            wa = w_node[k]
+            r0, r1, r2 = x[k, 0] - xc0, x[k, 1] - xc1, x[k, 2] - xc2
+            d0 = v[k, 0] - vc0 - (w1 * r2 - w2 * r1)
+            d1 = v[k, 1] - vc1 - (w2 * r0 - w0 * r2)
+            d2 = v[k, 2] - vc2 - (w0 * r1 - w1 * r0)
+            fe[e, a, 0] = -c * wa * d0
+            fe[e, a, 1] = -c * wa * d1
+            fe[e, a, 2] = -c * wa * d2
+            p -= c * wa * (d0 * d0 + d1 * d1 + d2 * d2)
+        power[e] = p
+
+
+class DeformationDamping(Effect):
+    """Deformation damping on every element group; rate c [1/s] per step, zero in steps that do not ask for it."""
+
+    follows_element_steps = True  # its step is a share of the elements' own: mass tracking raises both (solver)
+
+    name = "deformation damping"
+    forces = "damping"
+
+    def __init__(self, groups, rates, n_node):
+        self.groups = groups
+        self.rates = rates  # [1/s] per step
+        self.rate = 0.0
+        count = np.zeros(n_node)
+        for g in groups:
+            count += np.bincount(g.conn.ravel(), minlength=n_node)  # a degenerate shell repeats a node: counted
+        self.count = count  # elements (node entries) at each node, over all groups
+        self.w_node = np.zeros(n_node)  # m_a / k_a of the current step [t]
+        self.buffers = [(np.zeros(g.conn.shape + (3,)), np.zeros(len(g.conn))) for g in groups]
+
+    def begin_step(self, index, plan):
+        self.rate = self.rates[index]
+        held = self.count > 0
+        self.w_node[:] = 0.0
+        self.w_node[held] = plan.mass[held] / self.count[held]
+
+    def add_force(self, t, x, v, f):
+        if self.rate == 0.0:
+            return
+        for g, (fe, power) in zip(self.groups, self.buffers):
+            relative_forces(x, v, g.conn, self.w_node, self.rate, fe, power)
+            gather_add(fe, g.ptr, g.slots, f)
+
+    def stable_dt(self):
+        """Smallest damped element step [s]: dt_e (sqrt(1 + xi^2) - xi) with xi = c dt_e / 4 (see the module)."""
+        if self.rate == 0.0:
+            return math.inf
+        out = math.inf
+        for g in self.groups:
+            dt_e = g.dt_e[g.dt_e > 0.0]  # zero before the groups' first estimate: no bound from those yet
+            if dt_e.size:
+                xi = 0.25 * self.rate * dt_e
+                out = min(out, float(np.min(dt_e * (np.sqrt(1.0 + xi * xi) - xi))))
+        return out
+
+
+def build(cards: list, ctx) -> DeformationDamping | None:
+    """The effect, or None when no step asks for it. cards: each step's card or None."""
+    rates = [c.rate if c is not None else 0.0 for c in cards]
+    if not any(r > 0 for r in rates):
+        return None
+    return DeformationDamping(list(ctx.groups), rates, len(ctx.X))
+
+
+register_effect(EffectKind("deformation_damping", build))
