@@ -18,7 +18,8 @@ def _rigid_fit(x, v, w):
     the independent reference, by numpy's lstsq on the rows sqrt(w_a) [1 | -[r_a]x] (t, omega) = sqrt(w_a) v_a."""
     rows, rhs = [], []
     for xa, va, wa in zip(x, v, w):
-        cross = np.array([[0.0, xa[2], -xa[1]], [-xa[2], 0.0, xa[0]], [xa[1], -xa[0], 0.0]])  # omega x r = cross @ omega
+        # omega x r = cross @ omega
+        cross = np.array([[0.0, xa[2], -xa[1]], [-xa[2], 0.0, xa[0]], [xa[1], -xa[0], 0.0]])
         rows.append(math.sqrt(wa) * np.hstack([np.eye(3), cross]))
         rhs.append(math.sqrt(wa) * va)
     sol = np.linalg.lstsq(np.vstack(rows), np.concatenate(rhs), rcond=None)[0]
