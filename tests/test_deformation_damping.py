@@ -13,26 +13,33 @@ from helpers import deck_data, run_data
 pytestmark = pytest.mark.verification
 
 
-def _rigid_fit(x, v, w):
-    """Weighted least-squares rigid velocity field (translation + spin) of nodes x (n, 3) with velocities v:
-    the independent reference, by numpy's lstsq on the rows sqrt(w_a) [1 | -[r_a]x] (t, omega) = sqrt(w_a) v_a."""
+def _rigid_fit(x, v, w, spin=None, j=None):
+    """Weighted least-squares rigid motion (translation t, spin omega) of nodes x (n, 3) with velocities v and,
+    when given, angular velocities spin (n, 3) of rotational weights j: the independent reference, by numpy's lstsq
+    on the rows sqrt(w_a) [1 | -[x_a]x] (t, omega) = sqrt(w_a) v_a and sqrt(j_a) [0 | 1] (t, omega) = sqrt(j_a)
+    spin_a. Returns (the fitted velocities (n, 3), omega)."""
     rows, rhs = [], []
     for xa, va, wa in zip(x, v, w):
         # omega x r = cross @ omega
         cross = np.array([[0.0, xa[2], -xa[1]], [-xa[2], 0.0, xa[0]], [xa[1], -xa[0], 0.0]])
         rows.append(math.sqrt(wa) * np.hstack([np.eye(3), cross]))
         rhs.append(math.sqrt(wa) * va)
+    if spin is not None:
+        for sa, ja in zip(spin, j):
+            rows.append(math.sqrt(ja) * np.hstack([np.zeros((3, 3)), np.eye(3)]))
+            rhs.append(math.sqrt(ja) * sa)
     sol = np.linalg.lstsq(np.vstack(rows), np.concatenate(rhs), rcond=None)[0]
-    return sol[:3] + np.cross(sol[3:], x)
+    return sol[:3] + np.cross(sol[3:], x), sol[3:]
 
 
-@pytest.mark.parametrize("n", [8, 4])
-def test_rigid_motion_is_free_and_the_forces_keep_momentum(n):
-    """Requirement: on a distorted element (8 nodes, or 4 nearly coplanar ones as a shell) with unequal nodal
-    weights, a rigid velocity field (any translation plus any spin) gets no force (below 1e-12 of c w |v|: round-off
-    of the fit), and a random field gets forces f_a = -c w_a (v_a - rigid fit) with the fit computed independently
-    by least squares (1e-10 relative), zero resultant and zero moment (1e-12 of the force scale), and power
-    sum f.v = -c sum w |v - fit|^2 < 0 (1e-10)."""
+@pytest.mark.parametrize("n, rotations", [(8, False), (4, False), (4, True)])
+def test_rigid_motion_is_free_and_the_forces_keep_momentum(n, rotations):
+    """Requirement: on a distorted element (8 nodes, or 4 nearly coplanar ones as a shell, with nodal rotations
+    or without) with unequal nodal weights, a rigid motion (any translation plus any spin, the nodes' angular
+    velocities equal to the spin) gets no force or moment (below 1e-12 of the scale: round-off of the fit), and a
+    random one gets f_a = -c w_a (v_a - fit) and m_a = -c j_a (spin_a - omega) with the fit computed independently
+    by least squares (1e-10 relative), zero resultant and zero total moment sum r x f + m (1e-12 of the force
+    scale), and power sum f.v + m.spin = -c (sum w |v - fit|^2 + sum j |spin - omega|^2) < 0 (1e-10)."""
     from fdeck.physics.effects.deformation_damping import relative_forces
 
     rng = np.random.default_rng(3)
@@ -41,21 +48,33 @@ def test_rigid_motion_is_free_and_the_forces_keep_momentum(n):
         x[:, 2] *= 1e-3  # a shell's four nodes: nearly in a plane
     conn = np.arange(n)[None, :]
     w = rng.uniform(0.5, 2.0, n)
+    j = rng.uniform(0.5, 2.0, n) if rotations else np.zeros(n)
     c = 250.0
-    fe, power = np.zeros((1, n, 3)), np.zeros(1)
-    rigid = np.array([4.0, -2.0, 1.0]) + np.cross([0.7, -1.1, 2.3], x)
-    relative_forces(x, rigid, conn, w, c, fe, power)
+    fe, me, power = np.zeros((1, n, 3)), np.zeros((1, n, 3)), np.zeros(1)
+    omega = np.array([0.7, -1.1, 2.3])
+    rigid = np.array([4.0, -2.0, 1.0]) + np.cross(omega, x)
+    spin = np.tile(omega, (n, 1)) if rotations else np.zeros((n, 3))
+    relative_forces(x, rigid, spin, conn, w, j, c, fe, me, power)
     assert np.abs(fe).max() < 1e-12 * c * w.max() * np.abs(rigid).max()
+    assert np.abs(me).max() < 1e-12 * c * max(j.max(), 1.0) * np.abs(omega).max()
     v = rng.standard_normal((n, 3))
-    relative_forces(x, v, conn, w, c, fe, power)
-    f = fe[0]
-    expected = -c * w[:, None] * (v - _rigid_fit(x, v, w))
+    spin = rng.standard_normal((n, 3)) if rotations else np.zeros((n, 3))
+    relative_forces(x, v, spin, conn, w, j, c, fe, me, power)
+    f, m = fe[0], me[0]
+    fit, om = _rigid_fit(x, v, w, spin if rotations else None, j)
+    expected = -c * w[:, None] * (v - fit)
     assert np.allclose(f, expected, rtol=1e-10, atol=1e-10 * np.abs(expected).max())
+    if rotations:
+        assert np.allclose(m, -c * j[:, None] * (spin - om), rtol=1e-10, atol=1e-10 * np.abs(m).max())
+    else:
+        assert not m.any()
     scale = np.abs(f).max()
     assert np.abs(f.sum(axis=0)).max() < 1e-12 * scale * n
-    assert np.abs(np.cross(x - x.mean(axis=0), f).sum(axis=0)).max() < 1e-12 * scale * n * np.abs(x).max()
-    assert power[0] == pytest.approx(float((f * v).sum()), rel=1e-10) and power[0] < 0.0
-    assert power[0] == pytest.approx(-c * float((w[:, None] * (v - _rigid_fit(x, v, w)) ** 2).sum()), rel=1e-10)
+    total_moment = np.cross(x - x.mean(axis=0), f).sum(axis=0) + m.sum(axis=0)
+    assert np.abs(total_moment).max() < 1e-12 * scale * n * np.abs(x).max()
+    assert power[0] == pytest.approx(float((f * v).sum() + (m * spin).sum()), rel=1e-10) and power[0] < 0.0
+    reference = -c * float((w[:, None] * (v - fit) ** 2).sum() + (j[:, None] * (spin - om) ** 2).sum())
+    assert power[0] == pytest.approx(reference, rel=1e-10)
 
 
 def test_a_wave_decays_as_mass_damping_of_rate_c_pi2_h2_over_lambda2():

@@ -24,8 +24,12 @@ Step: M^-1 C is bounded by c, so a mode of angular frequency omega has a damping
 the damped central-difference limit (2 / omega)(sqrt(1 + xi^2) - xi) falls with omega: the fastest mode of an
 element, omega = 2 / dt_e, binds, and the step becomes dt_e (sqrt(1 + xi^2) - xi) with xi = c dt_e / 4.
 
-Translations only: shells' rotational velocities are not damped by it (the step's mass-proportional damping, if
-any, still acts on them). A step setting (``steps[i].deformation_damping``): built only when a step asks for it.
+Shells with nodal rotations: the rigid motion is then fitted to the velocities and the nodes' angular velocities
+together (weights I_a / k_a, the nodes' rotational inertia of the step; a rigid motion turns every director with
+the element's spin), and each node's angular velocity relative to the element's spin is damped the same way,
+m_a = -c (I_a / k_a)(w_a - w_e): a director turning against its element (a kink, a flutter of the rotations) is
+damped, a shell turning as a whole is not. M^-1 C stays bounded by c. A step setting
+(``steps[i].deformation_damping``): built only when a step asks for it.
 """
 
 from __future__ import annotations
@@ -41,11 +45,17 @@ from fdeck.registry import EffectKind, register_effect
 
 
 @njit_parallel
-def relative_forces(x, v, conn, w_node, c, fe, power):
-    """fe (n_el, n, 3) damping forces [N] and power (n_el,) [mW] (<= 0) of the elements conn (n_el, n).
+def relative_forces(x, v, w_rot, conn, w_node, j_node, c, fe, me, power):
+    """fe (n_el, n, 3) damping forces [N], me (n_el, n, 3) damping moments [N mm] and power (n_el,) [mW] (<= 0)
+    of the elements conn (n_el, n).
 
-    x, v (n_node, 3) [mm, mm/s]; w_node (n_node,) nodal weights m_a / k_a [t]; c the damping rate [1/s]. An element
-    whose nodes are collinear (no spin can be fitted: det I <= 1e-12 of its scale) keeps its translation only.
+    x, v (n_node, 3) [mm, mm/s]; w_rot (n_node, 3) nodal angular velocities [rad/s] (zeros without rotations);
+    w_node (n_node,) nodal weights m_a / k_a [t]; j_node (n_node,) rotational weights I_a / k_a [t mm^2] (zeros
+    without rotations: the fit is then translations and spin from the positions alone, and me stays zero);
+    c the damping rate [1/s]. The element's rigid motion is the weighted least-squares fit of a translation and
+    one spin w_e to the velocities and the nodes' angular velocities together: (I_e + J_e 1) w_e = L + sum j_a w_a
+    with I_e = sum w_a (|r|^2 1 - r r^T) and J_e = sum j_a. An element whose fit is singular (collinear nodes
+    without rotations: det <= 1e-12 of its scale) keeps its translation only.
     """
     n = conn.shape[1]
     for e in prange(conn.shape[0]):
@@ -64,6 +74,7 @@ def relative_forces(x, v, conn, w_node, c, fe, power):
         if W <= 0.0:
             for a in range(n):
                 fe[e, a, 0] = fe[e, a, 1] = fe[e, a, 2] = 0.0
+                me[e, a, 0] = me[e, a, 1] = me[e, a, 2] = 0.0
             power[e] = 0.0
             continue
         xc0 /= W
@@ -72,24 +83,30 @@ def relative_forces(x, v, conn, w_node, c, fe, power):
         vc0 /= W
         vc1 /= W
         vc2 /= W
-        # angular momentum about the centre L = sum w r x u and inertia I = sum w (|r|^2 1 - r r^T)
+        # L = sum w r x u + sum j w_rot and the matrix I_e + J_e 1 (symmetric)
         L0 = L1 = L2 = 0.0
         i00 = i11 = i22 = i01 = i02 = i12 = 0.0
+        Je = 0.0
         for a in range(n):
             k = conn[e, a]
             wa = w_node[k]
+            ja = j_node[k]
             r0, r1, r2 = x[k, 0] - xc0, x[k, 1] - xc1, x[k, 2] - xc2
             u0, u1, u2 = v[k, 0] - vc0, v[k, 1] - vc1, v[k, 2] - vc2
-            L0 += wa * (r1 * u2 - r2 * u1)
-            L1 += wa * (r2 * u0 - r0 * u2)
-            L2 += wa * (r0 * u1 - r1 * u0)
+            L0 += wa * (r1 * u2 - r2 * u1) + ja * w_rot[k, 0]
+            L1 += wa * (r2 * u0 - r0 * u2) + ja * w_rot[k, 1]
+            L2 += wa * (r0 * u1 - r1 * u0) + ja * w_rot[k, 2]
             i00 += wa * (r1 * r1 + r2 * r2)
             i11 += wa * (r0 * r0 + r2 * r2)
             i22 += wa * (r0 * r0 + r1 * r1)
             i01 -= wa * r0 * r1
             i02 -= wa * r0 * r2
             i12 -= wa * r1 * r2
-        # w = I^-1 L by cofactors (I symmetric)
+            Je += ja
+        i00 += Je
+        i11 += Je
+        i22 += Je
+        # w_e by cofactors
         c00, c11, c22 = i11 * i22 - i12 * i12, i00 * i22 - i02 * i02, i00 * i11 - i01 * i01
         c01, c02, c12 = i02 * i12 - i01 * i22, i01 * i12 - i02 * i11, i01 * i02 - i00 * i12
         det = i00 * c00 + i01 * c01 + i02 * c02
@@ -103,14 +120,19 @@ def relative_forces(x, v, conn, w_node, c, fe, power):
         for a in range(n):
             k = conn[e, a]
             wa = w_node[k]
+            ja = j_node[k]
             r0, r1, r2 = x[k, 0] - xc0, x[k, 1] - xc1, x[k, 2] - xc2
             d0 = v[k, 0] - vc0 - (w1 * r2 - w2 * r1)
             d1 = v[k, 1] - vc1 - (w2 * r0 - w0 * r2)
             d2 = v[k, 2] - vc2 - (w0 * r1 - w1 * r0)
+            s0, s1, s2 = w_rot[k, 0] - w0, w_rot[k, 1] - w1, w_rot[k, 2] - w2
             fe[e, a, 0] = -c * wa * d0
             fe[e, a, 1] = -c * wa * d1
             fe[e, a, 2] = -c * wa * d2
-            p -= c * wa * (d0 * d0 + d1 * d1 + d2 * d2)
+            me[e, a, 0] = -c * ja * s0
+            me[e, a, 1] = -c * ja * s1
+            me[e, a, 2] = -c * ja * s2
+            p -= c * (wa * (d0 * d0 + d1 * d1 + d2 * d2) + ja * (s0 * s0 + s1 * s1 + s2 * s2))
         power[e] = p
 
 
@@ -122,29 +144,43 @@ class DeformationDamping(Effect):
     name = "deformation damping"
     forces = "damping"
 
-    def __init__(self, groups, rates, n_node):
+    def __init__(self, groups, rates, n_node, rotational=False):
         self.groups = groups
         self.rates = rates  # [1/s] per step
         self.rate = 0.0
+        self.rotational = rotational  # shells with nodal rotations: their angular velocities are damped too
+        self.rot = None
         count = np.zeros(n_node)
         for g in groups:
             count += np.bincount(g.conn.ravel(), minlength=n_node)  # a degenerate shell repeats a node: counted
         self.count = count  # elements (node entries) at each node, over all groups
         self.w_node = np.zeros(n_node)  # m_a / k_a of the current step [t]
-        self.buffers = [(np.zeros(g.conn.shape + (3,)), np.zeros(len(g.conn))) for g in groups]
+        self.j_node = np.zeros(n_node)  # I_a / k_a of the current step [t mm^2] (zero without rotations)
+        self.no_spin = np.zeros((n_node, 3))  # the angular velocities of a model without rotations
+        self.buffers = [(np.zeros(g.conn.shape + (3,)), np.zeros(g.conn.shape + (3,)), np.zeros(len(g.conn)))
+                        for g in groups]
+
+    def bind(self, rotations) -> None:
+        self.rot = rotations
 
     def begin_step(self, index, plan):
         self.rate = self.rates[index]
         held = self.count > 0
         self.w_node[:] = 0.0
         self.w_node[held] = plan.mass[held] / self.count[held]
+        self.j_node[:] = 0.0
+        if self.rot is not None and plan.inertia is not None:
+            self.j_node[held] = plan.inertia[held] / self.count[held]
 
     def add_force(self, t, x, v, f):
         if self.rate == 0.0:
             return
-        for g, (fe, power) in zip(self.groups, self.buffers):
-            relative_forces(x, v, g.conn, self.w_node, self.rate, fe, power)
+        spin = self.rot.w if self.rot is not None else self.no_spin
+        for g, (fe, me, power) in zip(self.groups, self.buffers):
+            relative_forces(x, v, spin, g.conn, self.w_node, self.j_node, self.rate, fe, me, power)
             gather_add(fe, g.ptr, g.slots, f)
+            if self.rot is not None:
+                gather_add(me, g.ptr, g.slots, self.rot.m_damp)
 
     def stable_dt(self):
         """Smallest damped element step [s]: dt_e (sqrt(1 + xi^2) - xi) with xi = c dt_e / 4 (see the module)."""
@@ -164,7 +200,7 @@ def build(cards: list, ctx) -> DeformationDamping | None:
     rates = [c.rate if c is not None else 0.0 for c in cards]
     if not any(r > 0 for r in rates):
         return None
-    return DeformationDamping(list(ctx.groups), rates, len(ctx.X))
+    return DeformationDamping(list(ctx.groups), rates, len(ctx.X), rotational=ctx.rotations is not None)
 
 
 register_effect(EffectKind("deformation_damping", build))
