@@ -125,9 +125,10 @@ def _final_drop(data: dict) -> float:
 def test_free_fall_is_not_dragged_and_a_ringing_bar_books_its_dissipation():
     """Requirement: a free block under gravity with deformation damping falls as 1/2 g t^2 (closed form, 1e-9:
     rigid translation is not damped; the same block with mass-proportional damping at the same rate falls
-    measurably less, so the check can fail), as does a plate of shells with nodal rotations, and on the wave bar the dissipated energy is in the ledger (balance
-    error < 1e-3 of the largest energy, as for bulk viscosity), the damping energy is positive and the step is
-    dt_e (sqrt(1 + xi^2) - xi) with xi = c dt_e / 4 (closed form, 1e-12), c chosen so that xi = 0.5."""
+    measurably less, so the check can fail), as does a plate of shells with nodal rotations, and on the wave bar
+    the dissipated energy is in the ledger (balance error < 1e-3 of the largest energy, as for bulk viscosity), the
+    damping energy is positive and the step is dt_e (sqrt(1 + xi^2) - xi) with xi = c dt_e / 4 (closed form,
+    1e-12), c chosen so that xi = 0.5."""
     block = {"mesh": {"block": {"size": [2.0, 2.0, 2.0], "divisions": [2, 2, 2]}},
              "materials": {"m": {"type": "linear_elastic", "density": 1e-9, "youngs_modulus": 1000.0,
                                  "poisson_ratio": 0.25}},
