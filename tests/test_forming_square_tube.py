@@ -2,10 +2,10 @@
 run through the command line, pass their checks, and end in the shape the tools impose.
 
 Each deck runs once (module fixture, `python -m fdeck.cli run`, one thread); the `ts` deck also with deformation
-damping in place of its mass-proportional damping (nightly), which must meet every requirement here as well. The references are independent of the
-run: the tool geometry as built by the generator (`square_tube(height=20.5)`, the deck's variant files), the
-blank's half thickness and the exponential law's clearance, the energy ledger's own definition recomputed from its
-history columns, and the fibre tension law (the yarns are nearly inextensible).
+damping in place of its mass-proportional damping (nightly), which must meet every requirement here as well. The
+references are independent of the run: the tool geometry as built by the generator (`square_tube(height=20.5)`,
+the deck's variant files), the blank's half thickness and the exponential law's clearance, the energy ledger's own
+definition recomputed from its history columns, and the fibre tension law (the yarns are nearly inextensible).
 """
 
 from __future__ import annotations
