@@ -13,11 +13,12 @@ from helpers import deck_data, run_data
 pytestmark = pytest.mark.verification
 
 
-def _rigid_fit(x, v, w, spin=None, j=None):
+def _rigid_fit(x, v, w, spin=None, j=None, d=None):
     """Weighted least-squares rigid motion (translation t, spin omega) of nodes x (n, 3) with velocities v and,
-    when given, angular velocities spin (n, 3) of rotational weights j: the independent reference, by numpy's lstsq
-    on the rows sqrt(w_a) [1 | -[x_a]x] (t, omega) = sqrt(w_a) v_a and sqrt(j_a) [0 | 1] (t, omega) = sqrt(j_a)
-    spin_a. Returns (the fitted velocities (n, 3), omega)."""
+    when given, angular velocities spin (n, 3) of rotational weights j about axes normal to the directors d (n, 3):
+    the independent reference, by numpy's lstsq on the rows sqrt(w_a) [1 | -[x_a]x] (t, omega) = sqrt(w_a) v_a and
+    sqrt(j_a) [0 | P_a] (t, omega) = sqrt(j_a) P_a spin_a, P_a = 1 - d_a d_a^T. Returns (the fitted velocities
+    (n, 3), omega)."""
     rows, rhs = [], []
     for xa, va, wa in zip(x, v, w):
         # omega x r = cross @ omega
@@ -25,9 +26,10 @@ def _rigid_fit(x, v, w, spin=None, j=None):
         rows.append(math.sqrt(wa) * np.hstack([np.eye(3), cross]))
         rhs.append(math.sqrt(wa) * va)
     if spin is not None:
-        for sa, ja in zip(spin, j):
-            rows.append(math.sqrt(ja) * np.hstack([np.zeros((3, 3)), np.eye(3)]))
-            rhs.append(math.sqrt(ja) * sa)
+        for sa, ja, da in zip(spin, j, d):
+            proj = np.eye(3) - np.outer(da, da)
+            rows.append(math.sqrt(ja) * np.hstack([np.zeros((3, 3)), proj]))
+            rhs.append(math.sqrt(ja) * proj @ sa)
     sol = np.linalg.lstsq(np.vstack(rows), np.concatenate(rhs), rcond=None)[0]
     return sol[:3] + np.cross(sol[3:], x), sol[3:]
 
@@ -35,11 +37,12 @@ def _rigid_fit(x, v, w, spin=None, j=None):
 @pytest.mark.parametrize("n, rotations", [(8, False), (4, False), (4, True)])
 def test_rigid_motion_is_free_and_the_forces_keep_momentum(n, rotations):
     """Requirement: on a distorted element (8 nodes, or 4 nearly coplanar ones as a shell, with nodal rotations
-    or without) with unequal nodal weights, a rigid motion (any translation plus any spin, the nodes' angular
-    velocities equal to the spin) gets no force or moment (below 1e-12 of the scale: round-off of the fit), and a
-    random one gets f_a = -c w_a (v_a - fit) and m_a = -c j_a (spin_a - omega) with the fit computed independently
-    by least squares (1e-10 relative), zero resultant and zero total moment sum r x f + m (1e-12 of the force
-    scale), and power sum f.v + m.spin = -c (sum w |v - fit|^2 + sum j |spin - omega|^2) < 0 (1e-10)."""
+    or without) with unequal nodal weights, a rigid motion (any translation plus any spin; with rotations the nodes'
+    angular velocities equal to the spin up to any drilling part along their directors, which has no stiffness
+    and is not driven) gets no force or moment (below 1e-12 of the scale: round-off of the fit), and a random one
+    gets f_a = -c w_a (v_a - fit) and m_a = -c j_a P_a (spin_a - omega) with the fit computed independently by
+    least squares (1e-10 relative), zero resultant and zero total moment sum r x f + m (1e-12 of the force scale),
+    and power sum f.v + m.spin = -c (sum w |v - fit|^2 + sum j |P (spin - omega)|^2) < 0 (1e-10)."""
     from fdeck.physics.effects.deformation_damping import relative_forces
 
     rng = np.random.default_rng(3)
@@ -49,23 +52,28 @@ def test_rigid_motion_is_free_and_the_forces_keep_momentum(n, rotations):
     conn = np.arange(n)[None, :]
     w = rng.uniform(0.5, 2.0, n)
     j = rng.uniform(0.5, 2.0, n) if rotations else np.zeros(n)
+    d = np.zeros((n, 3))
+    if rotations:  # directors near the element's normal, each tilted its own way
+        d = np.array([0.0, 0.0, 1.0]) + 0.2 * rng.standard_normal((n, 3))
+        d /= np.linalg.norm(d, axis=1)[:, None]
     c = 250.0
     fe, me, power = np.zeros((1, n, 3)), np.zeros((1, n, 3)), np.zeros(1)
     omega = np.array([0.7, -1.1, 2.3])
     rigid = np.array([4.0, -2.0, 1.0]) + np.cross(omega, x)
-    spin = np.tile(omega, (n, 1)) if rotations else np.zeros((n, 3))
-    relative_forces(x, rigid, spin, conn, w, j, c, fe, me, power)
+    spin = omega + rng.standard_normal(n)[:, None] * d if rotations else np.zeros((n, 3))  # any drilling part
+    relative_forces(x, rigid, spin, d, conn, w, j, c, fe, me, power)
     assert np.abs(fe).max() < 1e-12 * c * w.max() * np.abs(rigid).max()
-    assert np.abs(me).max() < 1e-12 * c * max(j.max(), 1.0) * np.abs(omega).max()
+    assert np.abs(me).max() <= 1e-12 * c * max(j.max(), 1.0) * np.abs(omega).max()
     v = rng.standard_normal((n, 3))
     spin = rng.standard_normal((n, 3)) if rotations else np.zeros((n, 3))
-    relative_forces(x, v, spin, conn, w, j, c, fe, me, power)
+    relative_forces(x, v, spin, d, conn, w, j, c, fe, me, power)
     f, m = fe[0], me[0]
-    fit, om = _rigid_fit(x, v, w, spin if rotations else None, j)
+    fit, om = _rigid_fit(x, v, w, spin if rotations else None, j, d)
     expected = -c * w[:, None] * (v - fit)
     assert np.allclose(f, expected, rtol=1e-10, atol=1e-10 * np.abs(expected).max())
+    rel = np.array([(np.eye(3) - np.outer(da, da)) @ (sa - om) for sa, da in zip(spin, d)])
     if rotations:
-        assert np.allclose(m, -c * j[:, None] * (spin - om), rtol=1e-10, atol=1e-10 * np.abs(m).max())
+        assert np.allclose(m, -c * j[:, None] * rel, rtol=1e-10, atol=1e-10 * np.abs(m).max())
     else:
         assert not m.any()
     scale = np.abs(f).max()
@@ -73,8 +81,32 @@ def test_rigid_motion_is_free_and_the_forces_keep_momentum(n, rotations):
     total_moment = np.cross(x - x.mean(axis=0), f).sum(axis=0) + m.sum(axis=0)
     assert np.abs(total_moment).max() < 1e-12 * scale * n * np.abs(x).max()
     assert power[0] == pytest.approx(float((f * v).sum() + (m * spin).sum()), rel=1e-10) and power[0] < 0.0
-    reference = -c * float((w[:, None] * (v - fit) ** 2).sum() + (j[:, None] * (spin - om) ** 2).sum())
+    reference = -c * float((w[:, None] * (v - fit) ** 2).sum() + (j[:, None] * rel ** 2).sum())
     assert power[0] == pytest.approx(reference, rel=1e-10)
+
+
+def test_degenerate_elements_keep_momentum_and_dissipate():
+    """Requirement: an element whose nodes lie on a line (no spin can be fitted) keeps only its translation: a
+    uniform velocity gets no force (1e-12), any other field forces with zero resultant (1e-12 of their scale) and a
+    negative power equal to -c sum w |v - mean|^2 (1e-10, the weighted mean by hand); an element without mass (all
+    weights zero) gets no force at all."""
+    from fdeck.physics.effects.deformation_damping import relative_forces
+
+    rng = np.random.default_rng(5)
+    x = np.outer(np.arange(4.0), [1.0, 2.0, -0.5])  # four collinear nodes
+    conn = np.arange(4)[None, :]
+    w = rng.uniform(0.5, 2.0, 4)
+    zeros = np.zeros((4, 3))
+    fe, me, power = np.zeros((1, 4, 3)), np.zeros((1, 4, 3)), np.zeros(1)
+    relative_forces(x, np.tile([1.0, -2.0, 3.0], (4, 1)), zeros, zeros, conn, w, np.zeros(4), 100.0, fe, me, power)
+    assert np.abs(fe).max() < 1e-12 * 100.0 * w.max() * 3.0
+    v = rng.standard_normal((4, 3))
+    relative_forces(x, v, zeros, zeros, conn, w, np.zeros(4), 100.0, fe, me, power)
+    mean = (w[:, None] * v).sum(axis=0) / w.sum()
+    assert np.abs(fe[0].sum(axis=0)).max() < 1e-12 * np.abs(fe).max() * 4
+    assert power[0] == pytest.approx(-100.0 * float((w[:, None] * (v - mean) ** 2).sum()), rel=1e-10)
+    relative_forces(x, v, zeros, zeros, conn, np.zeros(4), np.zeros(4), 100.0, fe, me, power)
+    assert not fe.any() and not me.any() and power[0] == 0.0
 
 
 def test_a_wave_decays_as_mass_damping_of_rate_c_pi2_h2_over_lambda2():
@@ -150,7 +182,7 @@ def test_free_fall_is_not_dragged_and_a_ringing_bar_books_its_dissipation():
 
     data = deck_data("wave_bar.yaml")
     _, _, h0 = run_data(data)
-    dt_e = h0["dt"][1] / 0.9  # the deck's dt_safety 0.9
+    dt_e = h0["dt"][1] / data["steps"][0].get("dt_safety", 0.9)
     c = 2.0 / dt_e  # xi = c dt_e / 4 = 0.5
     data["steps"][0]["deformation_damping"] = {"rate": c}
     _, result, h = run_data(data)
@@ -158,7 +190,32 @@ def test_free_fall_is_not_dragged_and_a_ringing_bar_books_its_dissipation():
     assert h["dt"][1] == pytest.approx(h0["dt"][1] * (math.sqrt(1.25) - 0.5), rel=1e-12)
     scale = max(np.abs(h["kinetic_energy"]).max(), np.abs(h["external_work"]).max())
     assert np.abs(h["energy_balance_error"]).max() < 1e-3 * scale
+    # that it dissipates at all (measured 2.1 % of the largest energy; the ledger's round-off is 1e-12 of it)
     assert h["damping_energy"][-1] > 1e-2 * scale and h0["damping_energy"][-1] == 0.0
+
+
+def test_a_ringing_shell_plate_books_the_damping_of_its_rotations():
+    """Requirement: a cantilevered plate of sm shells (nodal rotations) whose free edge is pulled down to 500 mm/s
+    within 50 us, damped by deformation damping alone (so the nodes' spins relative to their elements are damped by
+    moments into the rotational ledger as well as the forces), closes its energy balance within 1e-3 of the largest
+    energy (measured 3.4e-4; without damping the same deck gives 9e-4, with mass damping 3e-5) and dissipates (over
+    1 % of the work; measured 14 %). A moment applied but not booked would show in the balance; the rotations here
+    are small (their kinetic energy 0.15 % of the translational), so this holds the bookkeeping, not its size."""
+    data = {"mesh": {"plate": {"size": [20, 20], "divisions": [10, 10]}},
+            "materials": {"f": {"type": "fabric_membrane", "preset": "t300_3k"}},
+            "sections": [{"material": "f", "formulation": "sm", "preset": "t300_3k",
+                          "orientation": {"warp_angle": 30}}],
+            "boundary": [{"type": "fixed", "nodes": "xmin", "dofs": ["x", "y", "z", "rx", "ry", "rz"]},
+                         {"type": "velocity", "nodes": "xmax", "dofs": ["x", "z"], "value": -500.0,
+                          "amplitude": "jerk"}],
+            "amplitudes": {"jerk": {"type": "smooth_step", "t1": 5e-5}},
+            "steps": [{"duration": 3e-4, "deformation_damping": {"rate": 20000.0}}],
+            "output": {"history_points": 60}}
+    _, result, h = run_data(data)
+    assert result.status in ("completed", "stopped"), result.message
+    scale = max(np.abs(h[k]).max() for k in ("kinetic_energy", "internal_energy", "external_work"))
+    assert np.abs(h["energy_balance_error"]).max() < 1e-3 * scale
+    assert h["damping_energy"][-1] > 1e-2 * h["external_work"][-1] > 0.0
 
 
 def test_a_membrane_strips_contact_chatter_is_rigid_element_motion_it_leaves_alone(tmp_path):

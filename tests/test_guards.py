@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import meshio
 import numpy as np
+import pytest
 
 from tests.test_restart import run, write_deck
 
@@ -32,17 +33,19 @@ output:
 """
 
 
-def test_collapsing_step_names_the_element_and_keeps_the_last_good_frame(tmp_path):
+@pytest.mark.parametrize("damping", ["", ", deformation_damping: {rate: 1000.0}"])
+def test_collapsing_step_names_the_element_and_keeps_the_last_good_frame(tmp_path, damping):
     """Requirement: when the stable step falls below min_dt_ratio x the step's first one, the run stops with exit 4
     and a message naming the element that sets the step; here the one element of the 100x stiffer section (its
-    wave speed is 10x the others', so it alone sets the step; reference: the compiled section's element id). The
+    wave speed is 10x the others', so it alone sets the step; reference: the compiled section's element id), also
+    when an effect whose bound is a share of the elements' steps (deformation damping) is the lowest bound. The
     summary's last good frame is earlier than the stop and holds finite displacements, and the stop happens once
     the step has fallen by 2 % (the collapse ratio asked), not before: the last history dt is within 2 % of the
     first (tolerance: the ratio itself)."""
     from fdeck.compile.problem import compile_deck
     from fdeck.deck.read import read_deck
 
-    path = write_deck(tmp_path, TWO_MATERIALS)
+    path = write_deck(tmp_path, TWO_MATERIALS.replace("min_dt_ratio: 0.98}", "min_dt_ratio: 0.98" + damping + "}"))
     deck, _, _ = read_deck(path)
     problem = compile_deck(deck, path.parent)
     (stiff,) = [g for g in problem.groups if g.section_index == 0]

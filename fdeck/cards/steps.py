@@ -19,7 +19,8 @@ class DeformationDamping(Card):
     (``physics.effects.deformation_damping``): no drag on rigid sliding or rotation."""
 
     rate: float = Field(gt=0, description="c in f_a = -c w_a v_def,a [1/s]: the rate at which element-scale "
-                        "deformation is damped (a mode of wavelength lambda about c (h / lambda)^2).")
+                        "deformation is damped (a wave of length lambda on elements of size h as by "
+                        "mass-proportional damping of c pi^2 (h / lambda)^2).")
 
 
 class BulkViscosity(Card):

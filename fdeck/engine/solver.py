@@ -94,16 +94,20 @@ def first_bad_node(*arrays: np.ndarray) -> int | None:
 
 def step_setter(groups, effects) -> str:
     """Who sets the stable step now: 'element <id> (<group>)' for an element group (its smallest ``dt_e``), or the
-    effect's name. Call right after the groups' and effects' ``stable_dt()``."""
+    effect's name; an effect whose bound is a share of the elements' own steps (``follows_element_steps``: bulk
+    viscosity, deformation damping) names the element too, as 'element <id> (<group>) under <effect>'. Call right
+    after the groups' and effects' ``stable_dt()``."""
     best, who = math.inf, "unknown"
     for g in groups:
         dt_e = getattr(g, "dt_e", None)
         if dt_e is not None and len(dt_e) and float(dt_e.min()) < best:
             i = int(np.argmin(dt_e))
             best, who = float(dt_e[i]), f"element {int(g.ids[i])} ({g.name})"
+    element = who
     for e in effects:
         if e.stable_dt() < best:
-            best, who = e.stable_dt(), f"effect {e.name}"
+            best = e.stable_dt()
+            who = f"{element} under {e.name}" if getattr(e, "follows_element_steps", False) else f"effect {e.name}"
     return who
 
 

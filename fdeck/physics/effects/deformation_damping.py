@@ -15,21 +15,27 @@ moment (momentum and angular momentum are untouched), rigid motion at any speed 
 lambda moves the nodes of an element of size h relative to each other by about pi h / lambda of its velocity, so it
 decays as mass-proportional damping of rate alpha = c pi^2 (h / lambda)^2 would (a stretching wave; a transverse one
 on cube-shaped elements half that, the spin taking the rest), while a node-to-node zig-zag (lambda = 2 h) is damped
-at c (c / 2 transverse): ``tests/test_deformation_damping.py``. So element-scale oscillation (the fibre switch of
-``fabric_membrane``, node-to-node flutter) is damped at about the rate c, long waves and rigid motion hardly: in
-this it acts like stiffness-proportional Rayleigh damping (LS-DYNA *DAMPING_PART_STIFFNESS, Abaqus beta), whose
-rate also grows as 1 / lambda^2 for non-dispersive waves, without a second evaluation of the material law.
+at alpha = c (c / 2 transverse; the kinetic energy decays at 2 alpha): ``tests/test_deformation_damping.py``. So
+element-scale oscillation (the fibre switch of ``fabric_membrane``, node-to-node flutter) is damped at about the
+rate c, long waves and rigid motion hardly: in this it acts like stiffness-proportional Rayleigh damping (LS-DYNA
+*DAMPING_PART_STIFFNESS, Abaqus beta), whose rate also grows as 1 / lambda^2 for non-dispersive waves, without a
+second evaluation of the material law.
 
-Step: M^-1 C is bounded by c, so a mode of angular frequency omega has a damping ratio of at most c / (2 omega), and
-the damped central-difference limit (2 / omega)(sqrt(1 + xi^2) - xi) falls with omega: the fastest mode of an
-element, omega = 2 / dt_e, binds, and the step becomes dt_e (sqrt(1 + xi^2) - xi) with xi = c dt_e / 4.
+Step: the weights of all elements sum to the lumped mass and each split is a projection, so C <= c M; with the
+element estimate dt_e of the fastest mode (K <= (2 / dt_e)^2 M), central differences stay stable while
+M - (dt / 2) C - (dt^2 / 4) K is positive, which holds for dt = dt_e (sqrt(1 + xi^2) - xi), xi = c dt_e / 4 (the
+damped limit of the fastest mode). The step's mass-proportional damping, if any, is not added to xi (its own bound
+is not modelled either), and ``fdeck info``'s rest step does not include the factor (1 - xi at most; 0.25 % at
+c = 2000 1/s and dt_e = 5e-6 s).
 
 Shells with nodal rotations: the rigid motion is then fitted to the velocities and the nodes' angular velocities
 together (weights I_a / k_a, the nodes' rotational inertia of the step; a rigid motion turns every director with
 the element's spin), and each node's angular velocity relative to the element's spin is damped the same way,
-m_a = -c (I_a / k_a)(w_a - w_e): a director turning against its element (a kink, a flutter of the rotations) is
-damped, a shell turning as a whole is not. M^-1 C stays bounded by c. A step setting
-(``steps[i].deformation_damping``): built only when a step asks for it.
+m_a = -c (I_a / k_a) P_a (w_a - w_e), both without the drilling part (P_a = 1 - d_a d_a^T, d_a the director: the
+drilling rotation has no stiffness and is not driven, so a plate turning in its plane has none at its nodes): a
+director turning against its element (a kink, a flutter of the rotations) is damped, a shell turning as a whole,
+in or out of its plane, is not. A step setting (``steps[i].deformation_damping``): built only when a step asks for
+it.
 """
 
 from __future__ import annotations
@@ -45,17 +51,20 @@ from fdeck.registry import EffectKind, register_effect
 
 
 @njit_parallel
-def relative_forces(x, v, w_rot, conn, w_node, j_node, c, fe, me, power):
+def relative_forces(x, v, w_rot, d, conn, w_node, j_node, c, fe, me, power):
     """fe (n_el, n, 3) damping forces [N], me (n_el, n, 3) damping moments [N mm] and power (n_el,) [mW] (<= 0)
     of the elements conn (n_el, n).
 
-    x, v (n_node, 3) [mm, mm/s]; w_rot (n_node, 3) nodal angular velocities [rad/s] (zeros without rotations);
-    w_node (n_node,) nodal weights m_a / k_a [t]; j_node (n_node,) rotational weights I_a / k_a [t mm^2] (zeros
-    without rotations: the fit is then translations and spin from the positions alone, and me stays zero);
-    c the damping rate [1/s]. The element's rigid motion is the weighted least-squares fit of a translation and
-    one spin w_e to the velocities and the nodes' angular velocities together: (I_e + J_e 1) w_e = L + sum j_a w_a
-    with I_e = sum w_a (|r|^2 1 - r r^T) and J_e = sum j_a. An element whose fit is singular (collinear nodes
-    without rotations: det <= 1e-12 of its scale) keeps its translation only.
+    x, v (n_node, 3) [mm, mm/s]; w_rot (n_node, 3) nodal angular velocities [rad/s] and d (n_node, 3) the nodes'
+    unit directors (zeros without rotations); w_node (n_node,) nodal weights m_a / k_a [t]; j_node (n_node,)
+    rotational weights I_a / k_a [t mm^2] (zeros without rotations: the fit is then translation and spin from the
+    positions alone, and me stays zero); c the damping rate [1/s]. Only the spin about axes normal to the director
+    counts, P_a = 1 - d_a d_a^T: a shell's drilling rotation has no stiffness and is not driven, so a plate turning in
+    its plane has no drilling spin at its nodes, and P_a w_e is what a rigid motion gives them. The rigid motion is
+    the weighted least-squares fit of a translation and one spin w_e to the velocities and the nodes' projected
+    angular velocities: (I_e + sum j_a P_a) w_e = L + sum j_a P_a w_a with I_e = sum w_a (|r|^2 1 - r r^T); the
+    moments are m_a = -c j_a P_a (w_a - w_e). An element whose fit is singular (collinear nodes without rotations:
+    det <= 1e-12 of its scale) keeps its translation only.
     """
     n = conn.shape[1]
     for e in prange(conn.shape[0]):
@@ -83,29 +92,26 @@ def relative_forces(x, v, w_rot, conn, w_node, j_node, c, fe, me, power):
         vc0 /= W
         vc1 /= W
         vc2 /= W
-        # L = sum w r x u + sum j w_rot and the matrix I_e + J_e 1 (symmetric)
+        # L = sum w r x u + sum j P w_rot and the matrix I_e + sum j P (symmetric)
         L0 = L1 = L2 = 0.0
         i00 = i11 = i22 = i01 = i02 = i12 = 0.0
-        Je = 0.0
         for a in range(n):
             k = conn[e, a]
             wa = w_node[k]
             ja = j_node[k]
             r0, r1, r2 = x[k, 0] - xc0, x[k, 1] - xc1, x[k, 2] - xc2
             u0, u1, u2 = v[k, 0] - vc0, v[k, 1] - vc1, v[k, 2] - vc2
-            L0 += wa * (r1 * u2 - r2 * u1) + ja * w_rot[k, 0]
-            L1 += wa * (r2 * u0 - r0 * u2) + ja * w_rot[k, 1]
-            L2 += wa * (r0 * u1 - r1 * u0) + ja * w_rot[k, 2]
-            i00 += wa * (r1 * r1 + r2 * r2)
-            i11 += wa * (r0 * r0 + r2 * r2)
-            i22 += wa * (r0 * r0 + r1 * r1)
-            i01 -= wa * r0 * r1
-            i02 -= wa * r0 * r2
-            i12 -= wa * r1 * r2
-            Je += ja
-        i00 += Je
-        i11 += Je
-        i22 += Je
+            n0, n1, n2 = d[k, 0], d[k, 1], d[k, 2]
+            dw = n0 * w_rot[k, 0] + n1 * w_rot[k, 1] + n2 * w_rot[k, 2]
+            L0 += wa * (r1 * u2 - r2 * u1) + ja * (w_rot[k, 0] - n0 * dw)
+            L1 += wa * (r2 * u0 - r0 * u2) + ja * (w_rot[k, 1] - n1 * dw)
+            L2 += wa * (r0 * u1 - r1 * u0) + ja * (w_rot[k, 2] - n2 * dw)
+            i00 += wa * (r1 * r1 + r2 * r2) + ja * (1.0 - n0 * n0)
+            i11 += wa * (r0 * r0 + r2 * r2) + ja * (1.0 - n1 * n1)
+            i22 += wa * (r0 * r0 + r1 * r1) + ja * (1.0 - n2 * n2)
+            i01 -= wa * r0 * r1 + ja * n0 * n1
+            i02 -= wa * r0 * r2 + ja * n0 * n2
+            i12 -= wa * r1 * r2 + ja * n1 * n2
         # w_e by cofactors
         c00, c11, c22 = i11 * i22 - i12 * i12, i00 * i22 - i02 * i02, i00 * i11 - i01 * i01
         c01, c02, c12 = i02 * i12 - i01 * i22, i01 * i12 - i02 * i11, i01 * i02 - i00 * i12
@@ -125,7 +131,12 @@ def relative_forces(x, v, w_rot, conn, w_node, j_node, c, fe, me, power):
             d0 = v[k, 0] - vc0 - (w1 * r2 - w2 * r1)
             d1 = v[k, 1] - vc1 - (w2 * r0 - w0 * r2)
             d2 = v[k, 2] - vc2 - (w0 * r1 - w1 * r0)
+            n0, n1, n2 = d[k, 0], d[k, 1], d[k, 2]
             s0, s1, s2 = w_rot[k, 0] - w0, w_rot[k, 1] - w1, w_rot[k, 2] - w2
+            ds = n0 * s0 + n1 * s1 + n2 * s2  # the drilling part, dropped: s = P (w_a - w_e)
+            s0 -= n0 * ds
+            s1 -= n1 * ds
+            s2 -= n2 * ds
             fe[e, a, 0] = -c * wa * d0
             fe[e, a, 1] = -c * wa * d1
             fe[e, a, 2] = -c * wa * d2
@@ -156,7 +167,7 @@ class DeformationDamping(Effect):
         self.count = count  # elements (node entries) at each node, over all groups
         self.w_node = np.zeros(n_node)  # m_a / k_a of the current step [t]
         self.j_node = np.zeros(n_node)  # I_a / k_a of the current step [t mm^2] (zero without rotations)
-        self.no_spin = np.zeros((n_node, 3))  # the angular velocities of a model without rotations
+        self.no_spin = None if rotational else np.zeros((n_node, 3))  # w and d of a model without rotations
         self.buffers = [(np.zeros(g.conn.shape + (3,)), np.zeros(g.conn.shape + (3,)), np.zeros(len(g.conn)))
                         for g in groups]
 
@@ -175,9 +186,9 @@ class DeformationDamping(Effect):
     def add_force(self, t, x, v, f):
         if self.rate == 0.0:
             return
-        spin = self.rot.w if self.rot is not None else self.no_spin
+        spin, d = (self.rot.w, self.rot.d) if self.rot is not None else (self.no_spin, self.no_spin)
         for g, (fe, me, power) in zip(self.groups, self.buffers):
-            relative_forces(x, v, spin, g.conn, self.w_node, self.j_node, self.rate, fe, me, power)
+            relative_forces(x, v, spin, d, g.conn, self.w_node, self.j_node, self.rate, fe, me, power)
             gather_add(fe, g.ptr, g.slots, f)
             if self.rot is not None:
                 gather_add(me, g.ptr, g.slots, self.rot.m_damp)
@@ -188,10 +199,11 @@ class DeformationDamping(Effect):
             return math.inf
         out = math.inf
         for g in self.groups:
-            dt_e = g.dt_e[g.dt_e > 0.0]  # zero before the groups' first estimate: no bound from those yet
+            # zero before the groups' first estimate, inf for an element without stiffness: no bound from those
+            dt_e = g.dt_e[np.isfinite(g.dt_e) & (g.dt_e > 0.0)]
             if dt_e.size:
                 xi = 0.25 * self.rate * dt_e
-                out = min(out, float(np.min(dt_e * (np.sqrt(1.0 + xi * xi) - xi))))
+                out = min(out, float(np.min(dt_e / (np.sqrt(1.0 + xi * xi) + xi))))  # = dt_e (sqrt(1 + xi^2) - xi)
         return out
 
 
