@@ -106,22 +106,15 @@ def run(request, tmp_path_factory):
     return h, X, x, summary, r
 
 
-def test_deformation_damping_drags_little(run, request):
-    """Requirement (ts_deformation only): without the mass damping the damping dissipates under 10 % of the work
-    the tools and the grips put in (measured 4.6 %; the shipped deck's mass damping, 200 1/s, takes about 40 % of
-    it on the slow decks, README Forming), so the forming above is not held up by the damping."""
-    if not request.node.callspec.params["run"].endswith("_deformation"):
-        pytest.skip("the shipped decks damp by mass")
-    h, *_ = run
-    work = h["tool_work_upper"][-1] + h["tool_work_lower"][-1] + h["grip_work_grip"][-1] + h["external_work"][-1]
-    assert 0.0 < h["damping_energy"][-1] < 0.10 * work, (h["damping_energy"][-1], work)
 
-
-def test_exit_zero_and_checks(run):
+def test_exit_zero_and_checks(run, request):
     """Requirement: each coarse deck completes with exit 0, i.e. its quasi-static (kinetic / internal <= 5 % after
     the first quarter) and energy-balance (<= 1 %) checks hold; both recomputed here from history.csv: the largest
     kinetic / internal ratio after a quarter of the run, and the largest |kinetic + internal + dissipated - work|
-    (the ledger's balance column, MODELS 8) over the largest of the work and the internal energy."""
+    (the ledger's balance column, MODELS 8) over the largest of the work and the internal energy. Without the mass
+    damping (ts_deformation) the damping also dissipates under 10 % of the work the tools and the grips put in
+    (measured 4.6 %; the shipped decks' mass damping, 200 1/s, takes about 40 % of it on the slow decks, README
+    Forming), so the forming is not held up by the damping."""
     h, _, _, summary, r = run
     assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
     t = h["time"]
@@ -131,6 +124,9 @@ def test_exit_zero_and_checks(run):
     work = h["external_work"]
     err = np.max(np.abs(h["energy_balance_error"])) / max(np.max(np.abs(work)), np.max(h["internal_energy"]))
     assert err <= 0.01, err
+    if request.node.callspec.params["run"].endswith("_deformation"):
+        put_in = h["tool_work_upper"][-1] + h["tool_work_lower"][-1] + h["grip_work_grip"][-1] + work[-1]
+        assert 0.0 < h["damping_energy"][-1] < 0.10 * put_in, (h["damping_energy"][-1], put_in)
 
 
 def test_upper_force_zero_before_contact_and_pushing_after(run):
