@@ -28,8 +28,7 @@ import bench  # noqa: E402
 from fdeck.compile.problem import compile_deck  # noqa: E402
 from fdeck.deck.model import Deck  # noqa: E402
 from fdeck.jit import njit_parallel, prange  # noqa: E402
-from fdeck.physics.elements.hex8 import (_NO_SUMS, _deformation_gradients, _hourglass_sums,  # noqa: E402
-                                          _nodal_forces, _squares)
+from fdeck.physics.elements.hex8 import _deformation_gradients, _nodal_forces, hourglass_element  # noqa: E402
 from fdeck.physics.materials import elastic  # noqa: E402
 from kernel_parts import best_us_per_element  # noqa: E402
 
@@ -43,35 +42,7 @@ def fused(x, v, conn, dN, w, F, J, frame, params, state, P, psi, modulus, fe, ga
         psi[e, 0], modulus[e, 0, 0], modulus[e, 0, 1], modulus[e, 0, 2] = elastic.point(
             F[e, 0], frame[e], params[e], state[e, 0], P[e, 0])
         _nodal_forces(P, dN, w, fe, e)
-        k = k_hg[e]
-        c = c_hg[e]
-        s = _hourglass_sums(x, conn, gamma, e) if k != 0.0 else _NO_SUMS
-        r = _hourglass_sums(v, conn, gamma, e) if c != 0.0 else _NO_SUMS
-        e_hg[e] = _squares(0.5 * k, s)
-        p_hg[e] = _squares(c, r)
-        h = (k * s[0] + c * r[0], k * s[1] + c * r[1], k * s[2] + c * r[2], k * s[3] + c * r[3],
-             k * s[4] + c * r[4], k * s[5] + c * r[5], k * s[6] + c * r[6], k * s[7] + c * r[7],
-             k * s[8] + c * r[8], k * s[9] + c * r[9], k * s[10] + c * r[10], k * s[11] + c * r[11])
-        for a in range(8):
-            g0, g1, g2, g3 = gamma[e, 0, a], gamma[e, 1, a], gamma[e, 2, a], gamma[e, 3, a]
-            f0 = fe[e, a, 0]
-            f1 = fe[e, a, 1]
-            f2 = fe[e, a, 2]
-            f0 += h[0] * g0
-            f1 += h[1] * g0
-            f2 += h[2] * g0
-            f0 += h[3] * g1
-            f1 += h[4] * g1
-            f2 += h[5] * g1
-            f0 += h[6] * g2
-            f1 += h[7] * g2
-            f2 += h[8] * g2
-            f0 += h[9] * g3
-            f1 += h[10] * g3
-            f2 += h[11] * g3
-            fe[e, a, 0] = f0
-            fe[e, a, 1] = f1
-            fe[e, a, 2] = f2
+        hourglass_element(x, v, conn, gamma, k_hg, c_hg, fe, e_hg, p_hg, e)
 
 
 def probe(divisions, rounds: int) -> dict:

@@ -281,36 +281,42 @@ def hourglass(x, v, conn, gamma, k_hg, c_hg, fe, e_hg, p_hg):
     two other runs (docs/kernels.md, item 5).
     """
     for e in prange(conn.shape[0]):
-        k = k_hg[e]
-        c = c_hg[e]
-        s = _hourglass_sums(x, conn, gamma, e) if k != 0.0 else _NO_SUMS
-        r = _hourglass_sums(v, conn, gamma, e) if c != 0.0 else _NO_SUMS
-        e_hg[e] = _squares(0.5 * k, s)
-        p_hg[e] = _squares(c, r)
-        h00, h01, h02 = k * s[0] + c * r[0], k * s[1] + c * r[1], k * s[2] + c * r[2]
-        h10, h11, h12 = k * s[3] + c * r[3], k * s[4] + c * r[4], k * s[5] + c * r[5]
-        h20, h21, h22 = k * s[6] + c * r[6], k * s[7] + c * r[7], k * s[8] + c * r[8]
-        h30, h31, h32 = k * s[9] + c * r[9], k * s[10] + c * r[10], k * s[11] + c * r[11]
-        for a in range(8):
-            g0, g1, g2, g3 = gamma[e, 0, a], gamma[e, 1, a], gamma[e, 2, a], gamma[e, 3, a]
-            f0 = fe[e, a, 0]
-            f1 = fe[e, a, 1]
-            f2 = fe[e, a, 2]
-            f0 += h00 * g0
-            f1 += h01 * g0
-            f2 += h02 * g0
-            f0 += h10 * g1
-            f1 += h11 * g1
-            f2 += h12 * g1
-            f0 += h20 * g2
-            f1 += h21 * g2
-            f2 += h22 * g2
-            f0 += h30 * g3
-            f1 += h31 * g3
-            f2 += h32 * g3
-            fe[e, a, 0] = f0
-            fe[e, a, 1] = f1
-            fe[e, a, 2] = f2
+        hourglass_element(x, v, conn, gamma, k_hg, c_hg, fe, e_hg, p_hg, e)
+
+
+@_inline
+def hourglass_element(x, v, conn, gamma, k_hg, c_hg, fe, e_hg, p_hg, e):
+    """``hourglass`` for element e (inlined into element loops: the kernel above and benchmarks/fusion_probe.py)."""
+    k = k_hg[e]
+    c = c_hg[e]
+    s = _hourglass_sums(x, conn, gamma, e) if k != 0.0 else _NO_SUMS
+    r = _hourglass_sums(v, conn, gamma, e) if c != 0.0 else _NO_SUMS
+    e_hg[e] = _squares(0.5 * k, s)
+    p_hg[e] = _squares(c, r)
+    h00, h01, h02 = k * s[0] + c * r[0], k * s[1] + c * r[1], k * s[2] + c * r[2]
+    h10, h11, h12 = k * s[3] + c * r[3], k * s[4] + c * r[4], k * s[5] + c * r[5]
+    h20, h21, h22 = k * s[6] + c * r[6], k * s[7] + c * r[7], k * s[8] + c * r[8]
+    h30, h31, h32 = k * s[9] + c * r[9], k * s[10] + c * r[10], k * s[11] + c * r[11]
+    for a in range(8):
+        g0, g1, g2, g3 = gamma[e, 0, a], gamma[e, 1, a], gamma[e, 2, a], gamma[e, 3, a]
+        f0 = fe[e, a, 0]
+        f1 = fe[e, a, 1]
+        f2 = fe[e, a, 2]
+        f0 += h00 * g0
+        f1 += h01 * g0
+        f2 += h02 * g0
+        f0 += h10 * g1
+        f1 += h11 * g1
+        f2 += h12 * g1
+        f0 += h20 * g2
+        f1 += h21 * g2
+        f2 += h22 * g2
+        f0 += h30 * g3
+        f1 += h31 * g3
+        f2 += h32 * g3
+        fe[e, a, 0] = f0
+        fe[e, a, 1] = f1
+        fe[e, a, 2] = f2
 
 
 _NO_SUMS = (0.0,) * 12
