@@ -142,7 +142,8 @@ class Outputs(solver.Sink):
 
     Each frame also carries the point fields of the measures that have some (``point_fields(x) -> {name: (n_node,)
     array}``, e.g. ``wrinkle``; two measures giving the same name are merged with fmax), each also as the cell field
-    ``<name>_element`` (the largest value at the element's nodes, ``cell_max``), and the surfaces of the
+    ``<name>_element`` (the largest value at the element's nodes, ``cell_max``), the effects' nodal fields
+    (``Effect.point_fields``: contact pressure, gap, status and slip), and the surfaces of the
     effects that have bodies (``Effect.surfaces()``: rigid tools), written as blocks of their own."""
 
     def __init__(self, problem, out_dir: Path, name: str, progress, digests: dict | None = None,
@@ -185,6 +186,11 @@ class Outputs(solver.Sink):
             for name, val in (m.point_fields(x) if hasattr(m, "point_fields") else {}).items():
                 point[name] = np.fmax(point[name], val) if name in point else np.array(val, copy=True)
                 measured[name] = None
+        n_node = len(self.problem.X)
+        for e in self.problem.effects:  # an effect's nodal fields (contact pressure, ...), merged across effects
+            for name, (val, merge) in e.point_fields(n_node).items():
+                join = np.fmax if merge == "max" else np.fmin
+                point[name] = join(point[name], val) if name in point else np.array(val, float)
         surfaces = [s for e in self.problem.effects for s in e.surfaces()]
         with np.errstate(invalid="ignore", divide="ignore"):  # an inverted element's last frame holds NaN by design
             cells = assemble_cells(self.problem)

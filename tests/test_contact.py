@@ -135,6 +135,74 @@ def test_block_on_an_incline_slides_with_the_coulomb_acceleration(mass_scaling):
         assert h["cg_iterations_mean"][-1] > 1.0 and h["added_kinetic_energy"][-1] > 0.0
 
 
+def _frame(problem, res, tmp_path):
+    """The point data of a frame written by ``run.Outputs`` at the run's last state, read back with meshio."""
+    import meshio
+
+    from fdeck.run import Outputs
+
+    out = Outputs(problem, tmp_path, "b", progress=None)
+    out.frame(0.0, res.final_positions, res.final_velocities)
+    for series in out.series:
+        series.close()
+    return meshio.read(next(tmp_path.glob("b_00000.vtu"))).point_data
+
+
+def test_frames_carry_contact_pressure_gap_and_status(tmp_path):
+    """Requirement: each frame holds the contact fields per node. For the block resting on the plane (linear law,
+    k = 200 MPa/mm): the bottom face sinks by h = m g / (k A) (1 %, as the resting test), and there
+    gap = -h (1e-9 relative: both read the same positions), pressure = k h (1e-9), status 1 (in contact, no friction), and the pressures times the nodes'
+    tributary areas (6.25 / 12.5 / 25 mm^2 for corner / edge / centre node) carry the weight m g (1 %, as the
+    resting test); on the top face pressure 0, status 0 and gap 5 mm less h (the plane's distance, 1e-9)."""
+    problem, res, _ = block([{"duration": 0.05, "damping": {"mass_proportional": 400.0}}],
+                            [{"type": "gravity", "acceleration": [0, 0, -G]}])
+    assert res.status == "completed", res.message
+    pd = _frame(problem, res, tmp_path)
+    z0 = problem.X[:, 2]
+    bottom, top = z0 == 0.0, z0 == 5.0
+    sink = -res.final_positions[bottom, 2]
+    assert sink == pytest.approx(np.full(bottom.sum(), 1e-6 * 500.0 * G / (200.0 * 100.0)), rel=0.01)
+    np.testing.assert_allclose(pd["contact_gap"][bottom], -sink, rtol=1e-9)
+    np.testing.assert_allclose(pd["contact_pressure"][bottom], 200.0 * sink, rtol=1e-9)
+    np.testing.assert_array_equal(pd["contact_status"][bottom], 1.0)
+    x, y = problem.X[bottom, 0], problem.X[bottom, 1]
+    area = 25.0 * np.where((x == 5.0), 1.0, 0.5) * np.where((y == 5.0), 1.0, 0.5)
+    assert float((pd["contact_pressure"][bottom] * area).sum()) == pytest.approx(1e-6 * 500.0 * G, rel=0.01)
+    np.testing.assert_array_equal(pd["contact_pressure"][top], 0.0)
+    np.testing.assert_array_equal(pd["contact_status"][top], 0.0)
+    np.testing.assert_allclose(pd["contact_gap"][top], res.final_positions[top, 2], rtol=1e-9)
+
+
+def test_frames_carry_the_slip_of_a_sliding_block(tmp_path):
+    """Requirement: ``contact_slip`` is each node's travel along the tool while in contact. The block on the incline
+    above the friction angle (tan 0.5 > mu = 0.3): its bottom nodes slide (status 2) and their slip equals their
+    own travel along x (1e-3 relative: the stick springs' elastic slip of about 5e-5 mm at the start and the normal
+    springs' ringing add tangential jitter far below it), which follows a = g (sin - mu cos) over the slide (2 %,
+    the incline test's tolerance; the travel starts at the tilt, before which the block rests). Top nodes: slip 0.
+    The exponential law (p0 about the weight per area, c0 = 0.01 mm) keeps the bottom nodes in contact while the
+    sudden tilt sets the block ringing; with the linear law they chatter off the floor part of the time (measured:
+    slip 40-60 % of the travel), and travel off contact is not slip."""
+    theta, mu = math.atan(0.5), 0.3
+    t1, duration = 0.02, 0.1
+    loads = [{"type": "gravity", "acceleration": [0, 0, -G * math.cos(theta)]},
+             {"type": "gravity", "acceleration": [G * math.sin(theta), 0, 0], "amplitude": "tilt"}]
+    extra = {"amplitudes": {"tilt": {"type": "tabular", "points": [[0, 0], [t1, 0], [t1 + 1e-9, 1], [1, 1]]}}}
+    steps = [{"name": "settle", "duration": t1, "damping": {"mass_proportional": 400.0}},
+             {"name": "slide", "duration": duration}]
+    extra["contact"] = [{"tool": "floor", "friction": {"static": mu},
+                         "normal": {"law": "exponential", "p0": 0.05, "c0": 0.01, "max_stiffness": 200.0}}]
+    problem, res, _ = block(steps, loads, extra=extra)
+    assert res.status == "completed", res.message
+    pd = _frame(problem, res, tmp_path)
+    bottom, top = problem.X[:, 2] == 0.0, problem.X[:, 2] == 5.0
+    travel = res.final_positions[bottom, 0] - problem.X[bottom, 0]
+    np.testing.assert_allclose(pd["contact_slip"][bottom], travel, rtol=1e-3)
+    a = G * (math.sin(theta) - mu * math.cos(theta))
+    assert float(travel.mean()) == pytest.approx(0.5 * a * duration**2, rel=0.02)
+    np.testing.assert_array_equal(pd["contact_status"][bottom], 2.0)
+    np.testing.assert_array_equal(pd["contact_slip"][top], 0.0)
+
+
 def test_initial_penetration_is_refused_with_node_numbers(tmp_path):
     """Requirement: blank nodes that start inside a tool are a located input error naming them, not a blow-up."""
     from fdeck.compile.errors import CompileError

@@ -10,6 +10,7 @@ Sizes: 16 to 100 elements and a few thousand to 40 000 cycles each, so every tes
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -162,6 +163,49 @@ def test_3weave_block_pinched_to_half_its_thickness_carries_the_compaction_stres
     work = h["tool_work_upper"][-1] + h["tool_work_lower"][-1]
     assert h["friction_dissipation"][-1] < 1e-4 * work
     assert balance_ratio(h) < 0.01
+
+
+LOCK = math.exp(I0_COMP)  # the thickness ratio at which the compaction energy becomes infinite (c = I0): 0.187
+
+
+def test_3weave_block_pinched_towards_the_lock_stops_where_the_law_loses_ellipticity():
+    """Known limit, pinned: the block above with the plates closing to 0.15 of its thickness, below the law's lock
+    at exp(I0) = 0.187 (the penalty springs, 1000 MPa/mm, would take the travel the block cannot: the equilibrium
+    with the springs lies near lam = 0.37). The published law, free to expand sideways, loses strong ellipticity
+    (README, *Known limits*: near c = -1.1 for a homogeneous state): here a non-uniform mode of the 2 x 2 x 2 mesh
+    grows (faces wrinkle at element scale, local thickness ratios down to about 0.3) once the mean thickness ratio
+    passes about 0.42 (c = -0.87), with any step (measured at dt_safety 0.9 and 0.5, full and F-bar alike), and the
+    forces overflow. Required: the run stops with the engine's located message (non-finite energy, naming a node
+    and the time), not silently and not with a traceback, after the block went deep into the stiff branch (mean
+    thickness ratio below 0.45 at the last history row: the law's force there is about 4 000 times that at 0.9) and
+    short of the lock. This is not the issue's hard case (no NaN up to the compaction limit), which stays open."""
+    lam = 0.15
+    travel = GAP + H0 * (1.0 - lam) / 2.0
+
+    def tool(z, n):
+        return {"shape": "plane", "point": [0, 0, z], "normal": [0, 0, n]}
+
+    data = {
+        "mesh": {"block": {"size": [WB, WB, H0], "divisions": [2, 2, 2]},
+                 "node_sets": {"top": {"box": [[0, 0, H0], [WB, WB, H0]]},
+                               "bottom": {"box": [[0, 0, 0], [WB, WB, 0]]}}},
+        "materials": {"f": {"type": "3weave"}},
+        "sections": [{"material": "f", "formulation": "fbar"}],
+        "tools": {"upper": {"surface": tool(H0 + GAP, -1), "motion": {"direction": [0, 0, -1], "value": travel}},
+                  "lower": {"surface": tool(-GAP, 1), "motion": {"direction": [0, 0, 1], "value": travel}}},
+        "contact": [{"tool": t, "normal": {"law": "linear", "stiffness": 1000.0}, "friction": {"static": 0.2}}
+                    for t in ("upper", "lower")],
+        "steps": [{"duration": 0.02}],
+        "output": {"history_points": 200, "measures": [
+            {"type": "node_displacement", "name": "top", "nodes": "top", "component": "z"},
+            {"type": "node_displacement", "name": "bottom", "nodes": "bottom", "component": "z"}]},
+    }
+    _, res, h = run_data(data)
+    assert res.status == "failed"
+    assert re.search(r"non-finite energy .* at node \d+ .* at t = [0-9.e-]+ s", res.message), res.message
+    lam_last = (H0 + h["top"][-1] - h["bottom"][-1]) / H0
+    print(f"pinch to the lock: {res.message}; mean thickness ratio {lam_last:.3f} at t = {h['time'][-1]:.4g} s")
+    assert LOCK < lam_last < 0.45
 
 
 # -- 3c. a sharp sphere pressed into a shell ----------------------------------------------------------------------

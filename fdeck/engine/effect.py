@@ -91,6 +91,11 @@ class Effect:
         or None when its name says enough."""
         return None
 
+    def point_fields(self, n_node: int) -> dict[str, tuple[np.ndarray, str]]:
+        """Nodal fields of the effect for every frame: {name: ((n_node,) values, merge)}, merge "max" or "min"
+        naming how the fields of one name from several effects combine (NaN: no value there); empty by default."""
+        return {}
+
     def surfaces(self) -> list[tuple[str, np.ndarray, np.ndarray]]:
         """Surfaces of the effect's own bodies to draw beside the blank in every frame (a rigid tool): a list of
         (name, current points (n, 3) [mm], triangles (m, 3) int, 0-based); empty for effects without a body."""

@@ -44,6 +44,9 @@ on its lumped mass m; the effect bounds the step by sqrt(m / k) = 1 / omega, hal
 that the node stays stable with the element stiffness added (up to three times the penalty's) and the penalty's
 ringing, which the ledger sees at the dt^2 omega^2 / 8 level of central differences, stays small.
 
+Output: every frame carries the contact pressure, gap, status (open / stick / slip) and accumulated slip of each
+blank node (``point_fields``; the pairs of several tools merged by ``run.Outputs``).
+
 Broad phase against a triangulated tool: the tool's grid (``tools.triangulated``) answers a node's query with one
 cell look-up; a node found out of reach at its last query (its distance to the nearest triangle minus its offset and
 the law's clearance, its slack) is not queried again until its travel relative to the tool since then exceeds that
@@ -166,14 +169,15 @@ def query_mesh(x, nodes, P, T, face_n, edge_n, vert_n, rim_e, rim_v, lo, h, dims
 
 @njit_parallel
 def contact_forces(x, nodes, dist, nrm, area, vec, offset, two_sided, u, law, kt, mu_s, mu_d, x_prev, u_prev,
-                   ft, status, last, f, gap, pressure, energy, dissipated, area_work, f_int):
+                   ft, status, slip, last, f, gap, pressure, energy, dissipated, area_work, f_int):
     """Contact forces of every contact node (one node per iteration: no race, same bits on any thread count).
 
     x (n_node, 3) positions; nodes (k,) node indices; dist (k,), nrm (k, 3) signed distance and normal to the tool
     (``query_*``); area (k,) [mm^2] of shell nodes; vec (k, 3) outward vector area of solid nodes [mm^2]; offset (k,)
     [mm]; two_sided (k,) bool (shell nodes); u (3,) tool translation, u_prev (3,) at the last call; law (8,); kt (k,)
     stick stiffness [N/mm]; x_prev (k, 3) node positions at the last call (updated); ft (k, 3) tangential force
-    (updated); status (k,) 0 open, 1 stick, 2 slip (updated); last (k, 2) the node's area A [mm^2] and normal energy
+    (updated); status (k,) 0 open, 1 stick, 2 slip (updated); slip (k,) [mm] the node's tangential travel relative to
+    the tool summed over the calls that find it in contact (updated); last (k, 2) the node's area A [mm^2] and normal energy
     per area [mJ/mm^2] at the last call (A < 0 before the first; updated). Outputs f (k, 3) force of the tool on each
     node [N], gap, pressure (k,) [mm, MPa], energy (k,) stored normal + stick energy [mJ], dissipated (k,) friction
     dissipation of this call [mJ], area_work (k,) the work of this call's change of A [mJ] (module docstring,
@@ -221,6 +225,9 @@ def contact_forces(x, nodes, dist, nrm, area, vec, offset, two_sided, u, law, kt
             state = 1
         ft[i, 0], ft[i, 1], ft[i, 2] = t0, t1, t2
         status[i] = state if fn > 0.0 else 0
+        if fn > 0.0:
+            dn = du0 * n0 + du1 * n1 + du2 * n2
+            slip[i] += math.sqrt((du0 - dn * n0) ** 2 + (du1 - dn * n1) ** 2 + (du2 - dn * n2) ** 2)
         f[i, 0], f[i, 1], f[i, 2] = fn * n0 + t0, fn * n1 + t1, fn * n2 + t2
         f_int[a, 0] -= f[i, 0]
         f_int[a, 1] -= f[i, 1]
@@ -261,7 +268,7 @@ class RigidContact(Effect):
         self.xq, self.uq, self.slack = np.zeros((k, 3)), np.zeros((k, 3)), np.zeros(k)
         self.u_force = np.array(tool.u)  # tool translation at the last call
         self.x_prev = np.ascontiguousarray(X[nodes])
-        self.ft, self.status = np.zeros((k, 3)), np.zeros(k, np.int64)
+        self.ft, self.status, self.slip = np.zeros((k, 3)), np.zeros(k, np.int64), np.zeros(k)
         self.dist, self.nrm = np.zeros(k), np.zeros((k, 3))
         self.f, self.gap, self.pressure = np.zeros((k, 3)), np.zeros(k), np.zeros(k)
         self.energy, self.dissipated, self.area_work = np.zeros(k), np.zeros(k), np.zeros(k)
@@ -336,7 +343,7 @@ class RigidContact(Effect):
         self.query(x, u_call)
         contact_forces(x, self.nodes, self.dist, self.nrm, self.area, self.vec, self.offset, self.two_sided, u_call,
                        self.law, self.kt, self.mu_s, self.mu_d, self.x_prev, self.u_force, self.ft, self.status,
-                       self.last, self.f, self.gap, self.pressure, self.energy, self.dissipated, self.area_work, f)
+                       self.slip, self.last, self.f, self.gap, self.pressure, self.energy, self.dissipated, self.area_work, f)
         force = self.f.sum(axis=0)
         self.work += 0.5 * float(np.dot(self.force + force, u_call - self.u_force))
         self.force, self.u_force = force, u_call
@@ -346,6 +353,22 @@ class RigidContact(Effect):
 
     def stable_dt(self):
         return self.dt
+
+    def point_fields(self, n_node):
+        """The contact's nodal fields at the last call, for every frame (several tools merged by ``run.Outputs``):
+        contact_pressure [MPa] (largest over the tools), contact_gap [mm] (smallest; NaN at nodes that are no contact
+        node; against a triangulated tool at most its search distance less the node's offset, since farther nodes
+        are not queried), contact_status (0 open, 1 stick, 2 slip; largest) and contact_slip [mm] (the node's
+        tangential travel relative to the tool while in contact, accumulated over the run; largest)."""
+        out = {}
+        for name, values, merge, empty in (("contact_pressure", self.pressure, "max", 0.0),
+                                           ("contact_gap", self.gap, "min", np.nan),
+                                           ("contact_status", self.status, "max", 0.0),
+                                           ("contact_slip", self.slip, "max", 0.0)):
+            field = np.full(n_node, empty)
+            field[self.nodes] = values
+            out[name] = (field, merge)
+        return out
 
     def describe(self, plan) -> str:
         self.begin_step(0, plan)

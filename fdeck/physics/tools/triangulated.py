@@ -59,13 +59,32 @@ class Surface:
                 self.dims, self.start, self.items, self.r)
 
 
-def read(path: Path, part: str | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """(points (n, 3), triangles (m, 3) int64) of a surface file that meshio reads (STL, OBJ, Abaqus .inp, ...);
-    quadrilaterals (R3D4) are split into two triangles; ``part`` names a cell set (an Abaqus element set) to keep.
-    Raises ValueError with a plain message on a file that holds no triangles or quadrilaterals."""
+def _read_mesh(path: Path):
+    """meshio's mesh of a surface file. meshio's Abaqus reader knows R3D3 but not R3D4, Abaqus's 4-node rigid
+    facet; an .inp's R3D4 elements are read as S4R, the 4-node shell whose connectivity meshio maps to a quad
+    (only the nodes and their order are used here: the facet's normal follows that order in both)."""
+    import io
+    import re
+
     import meshio
 
-    mesh = meshio.read(path)
+    if path.suffix.lower() != ".inp":
+        return meshio.read(path)
+    text = path.read_text(errors="replace")
+    if not re.search(r"type\s*=\s*R3D4\b", text, flags=re.I):
+        return meshio.read(path)
+    text = re.sub(r"(type\s*=\s*)R3D4\b", r"\1S4R", text, flags=re.I)
+    from meshio.abaqus._abaqus import read_buffer
+
+    return read_buffer(io.StringIO(text))
+
+
+def read(path: Path, part: str | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(points (n, 3), triangles (m, 3) int64) of a surface file that meshio reads (STL, OBJ, Abaqus .inp, ...);
+    quadrilaterals (R3D4, S4, any quad) are split into two triangles; ``part`` names a cell set (an Abaqus element
+    set) to keep.
+    Raises ValueError with a plain message on a file that holds no triangles or quadrilaterals."""
+    mesh = _read_mesh(Path(path))
     tris = []
     for k, block in enumerate(mesh.cells):
         data = np.asarray(block.data, np.int64)
