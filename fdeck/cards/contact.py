@@ -87,7 +87,37 @@ class Mesh(_Shape):
     offset: Vector = Field((0.0, 0.0, 0.0), description="Translation added to the file's coordinates [mm].")
 
 
-Shape = Annotated[Union[Plane, Sphere, Cylinder, RoundedBox, Mesh], Field(discriminator="shape")]
+class Profile(_Shape):
+    """Extruded rounded profile: a polyline in the plane of `u_axis` and `v_axis` (through `origin`), every interior
+    corner rounded by a fillet of its radius, extruded without end along u x v (a die or punch section: a channel,
+    a rounded step). The blank lies on the left of the polyline walked from its first point to its last (a profile
+    walked along +u with v up has the blank above it); the first and last segments continue as straight lines
+    beyond the end points, so the surface has no rim."""
+
+    shape: Literal["profile"]
+    points: list[tuple[float, float]] = Field(min_length=2, description="Corners (u, v) of the polyline [mm].")
+    radii: float | list[float] = Field(description="Fillet radius at each interior corner [mm], > 0 (one value for "
+                                                   "all, or one per interior point).")
+    origin: Vector = Field((0.0, 0.0, 0.0), description="Where (u, v) = (0, 0) lies [mm].")
+    u_axis: Vector = Field((1.0, 0.0, 0.0), description="Direction of the profile's first coordinate.")
+    v_axis: Vector = Field((0.0, 0.0, 1.0), description="Direction of its second coordinate (made normal to u).")
+
+    @model_validator(mode="after")
+    def _profile(self):
+        n_corner = len(self.points) - 2
+        radii = [self.radii] * n_corner if isinstance(self.radii, float) else self.radii
+        if len(radii) != n_corner:
+            raise ValueError(f"`radii` lists {len(radii)} values for {n_corner} interior points")
+        if any(r <= 0.0 for r in radii):
+            raise ValueError("every fillet radius must be > 0 (a sharp corner has no unique normal)")
+        u, v = self.u_axis, self.v_axis
+        cross = (u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0])
+        if math.sqrt(sum(c * c for c in cross)) <= 1e-9 * math.sqrt(sum(c * c for c in u) * sum(c * c for c in v)):
+            raise ValueError("`u_axis` and `v_axis` must not be parallel (or zero)")
+        return self
+
+
+Shape = Annotated[Union[Plane, Sphere, Cylinder, RoundedBox, Profile, Mesh], Field(discriminator="shape")]
 
 
 class Motion(Card):

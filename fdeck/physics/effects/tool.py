@@ -123,7 +123,10 @@ def build_tool(name: str, card, ctx) -> RigidTool:
             raise CompileError([(("tools", name, "surface"), f"{path.name}: {exc}")]) from None
         surface = (MESH, -1, np.zeros(8), (np.ascontiguousarray(P), np.ascontiguousarray(T, np.int64)))
     else:
-        kind, params = analytic.pack(s)
+        try:
+            kind, params = analytic.pack(s)
+        except ValueError as exc:  # a profile whose fillets do not fit
+            raise CompileError([(("tools", name, "surface"), str(exc))]) from None
         surface = (ANALYTIC, kind, params, None)
     amp = ctx.amplitude(card.motion.amplitude_name) if card.motion is not None else (lambda t: 0.0)
     return RigidTool(name, card, amp, surface, np.concatenate([ctx.X.min(axis=0), ctx.X.max(axis=0)]))

@@ -3,7 +3,8 @@
 A surface is packed as ``(kind, params (8,))``: PLANE [px, py, pz, nx, ny, nz], SPHERE [cx, cy, cz, R],
 CYLINDER [px, py, pz, ax, ay, az, R] with unit n and a, ROUNDED_BOX [cx, cy, cz, bx, by, bz, R] (half-sizes b
 including the rounding R: the box shrunk by R, grown again by a distance R, so its distance is that of the sharp
-inner box less R). The distance is positive on the blank's side (outside the
+inner box less R), PROFILE (``tools.profile``: a rounded polyline extruded, a longer array). The distance is
+positive on the blank's side (outside the
 sphere and the cylinder), and its gradient with respect to the point is the normal, so a penalty force p n is
 -dE/dx of the energy E(-d) and the contact is conservative. A tool translated by u has the distance d(x - u).
 """
@@ -15,13 +16,16 @@ import math
 import numpy as np
 
 from fdeck.jit import njit
+from fdeck.physics.tools import profile
 
-PLANE, SPHERE, CYLINDER, ROUNDED_BOX = 0, 1, 2, 3
+PLANE, SPHERE, CYLINDER, ROUNDED_BOX, PROFILE = 0, 1, 2, 3, 4
 
 
 def pack(surface) -> tuple[int, np.ndarray]:
     """(kind, params (8,)) of a surface card (``fdeck.cards.contact.Plane`` / ``Sphere`` / ``Cylinder`` /
     ``RoundedBox``)."""
+    if surface.shape == "profile":
+        return PROFILE, profile.pack(surface)
     p = np.zeros(8)
     if surface.shape == "plane":
         n = np.asarray(surface.normal, float)
@@ -44,6 +48,8 @@ def distance(kind, p, x0, x1, x2):
     if kind == PLANE:
         n0, n1, n2 = p[3], p[4], p[5]
         return (x0 - p[0]) * n0 + (x1 - p[1]) * n1 + (x2 - p[2]) * n2, n0, n1, n2
+    if kind == PROFILE:
+        return profile.distance(p, x0, x1, x2)
     r0, r1, r2 = x0 - p[0], x1 - p[1], x2 - p[2]
     if kind == ROUNDED_BOX:
         return _box(r0, r1, r2, p[3] - p[6], p[4] - p[6], p[5] - p[6], p[6])
@@ -82,6 +88,8 @@ def facets(kind: int, p: np.ndarray, extent: np.ndarray, n: int = 32) -> tuple[n
     as a square 1.5 times the blank's diagonal about the blank's centre (``extent`` = lo (3,), hi (3,) of the
     blank), a sphere by n x n/2 facets, a cylinder by n facets around over the blank's span along its axis, a
     rounded box as its sharp box (for display only: the contact uses the exact distance)."""
+    if kind == PROFILE:
+        return profile.facets(p, extent)
     lo, hi = extent[:3], extent[3:]
     centre, size = 0.5 * (lo + hi), 1.5 * max(float(np.linalg.norm(hi - lo)), 1.0)
     if kind == PLANE:
