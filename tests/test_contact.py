@@ -173,6 +173,26 @@ def test_frames_carry_contact_pressure_gap_and_status(tmp_path):
     np.testing.assert_allclose(pd["contact_gap"][top], res.final_positions[top, 2], rtol=1e-9)
 
 
+def test_block_resting_under_the_exponential_law_sits_at_zero_clearance(tmp_path):
+    """Requirement (MODELS 7): the exponential law's pressure at zero clearance is p0. A block whose weight per
+    area m g / A is chosen as p0 (0.049 MPa) settles where the bottom face's gap is 0: the frame's contact_gap
+    within 1e-3 c0 of 0 (c0 = 0.01 mm; the slope there, p0 (1 + 1/(e-1))/c0, makes 1e-3 c0 a 0.16 % pressure error,
+    above the damped rest's residue) and contact_pressure within 1 % of p0 at every bottom node, and the floor
+    carries the weight (1 %)."""
+    weight = 1e-6 * 500.0 * G
+    p0 = weight / 100.0
+    extra = {"contact": [{"tool": "floor", "normal": {"law": "exponential", "p0": p0, "c0": 0.01,
+                                                      "max_stiffness": 200.0}}]}
+    problem, res, h = block([{"duration": 0.05, "damping": {"mass_proportional": 400.0}}],
+                            [{"type": "gravity", "acceleration": [0, 0, -G]}], extra=extra)
+    assert res.status == "completed", res.message
+    pd = _frame(problem, res, tmp_path)
+    bottom = problem.X[:, 2] == 0.0
+    assert np.abs(pd["contact_gap"][bottom]).max() < 1e-3 * 0.01
+    np.testing.assert_allclose(pd["contact_pressure"][bottom], p0, rtol=0.01)
+    assert h["tool_floor_force_z"][-1] == pytest.approx(weight, rel=0.01)
+
+
 def test_frames_carry_the_slip_of_a_sliding_block(tmp_path):
     """Requirement: ``contact_slip`` is each node's travel along the tool while in contact. The block on the incline
     above the friction angle (tan 0.5 > mu = 0.3): its bottom nodes slide (status 2) and their slip equals their
