@@ -115,24 +115,14 @@ def compaction_force(lam: float) -> float:
     return -dpsi / lam * WB * WB
 
 
-def test_3weave_block_pinched_to_half_its_thickness_carries_the_compaction_stress():
-    """Requirement: a 3WEAVE block (10 x 10 mm, one 2.54 mm ply, 2 x 2 x 2 F-bar hexahedra) squeezed between two
-    plates moving towards each other (smooth amplitude, 0.02 s, to a thickness ratio of 0.5, where the compaction
-    law has stiffened 130-fold and locks at 0.19) is homogeneously compacted: each plate's force equals the law's
-    P33(lam) times the area with lam measured from the plies' faces, within 3 % at the end (a quasi-static point:
-    the plates stop there; the force fluctuates by about 1 % from the ringing of the stiff compacted block, and
-    dlnF/dln(lam) is about 10 there, so 0.1 % of thickness is 1 % of force); the two plates' forces balance to 3 %;
-    kinetic energy below 1e-3 of the internal energy at the end; friction (mu = 0.2, holding the free block) does
-    nothing (the law has no in-plane compaction stress, so the faces do not slide): below 1e-4 of the tools' work;
-    energy balance within 1 %. Measured: lam 0.509, upper / law 0.995, lower / law 0.997 (1146 N), balance
-    4.6e-4."""
-    lam = 0.5
-    travel = GAP + H0 * (1.0 - lam) / 2.0
+def pinch_deck(travel: float) -> dict:
+    """The block between two plates that each travel ``travel`` mm towards it (smooth amplitude, 0.02 s), linear
+    penalty 1000 MPa/mm, friction 0.2; history of the top and bottom faces' mean z displacement."""
 
     def tool(z, n):
         return {"shape": "plane", "point": [0, 0, z], "normal": [0, 0, n]}
 
-    data = {
+    return {
         "mesh": {"block": {"size": [WB, WB, H0], "divisions": [2, 2, 2]},
                  "node_sets": {"top": {"box": [[0, 0, H0], [WB, WB, H0]]},
                                "bottom": {"box": [[0, 0, 0], [WB, WB, 0]]}}},
@@ -147,7 +137,23 @@ def test_3weave_block_pinched_to_half_its_thickness_carries_the_compaction_stres
             {"type": "node_displacement", "name": "top", "nodes": "top", "component": "z"},
             {"type": "node_displacement", "name": "bottom", "nodes": "bottom", "component": "z"}]},
     }
-    _, res, h = run_data(data)
+
+
+def test_3weave_block_pinched_to_half_its_thickness_carries_the_compaction_stress():
+    """Requirement: a 3WEAVE block (10 x 10 mm, one 2.54 mm ply, 2 x 2 x 2 F-bar hexahedra) squeezed between two
+    plates moving towards each other (smooth amplitude, 0.02 s, to a thickness ratio of 0.5, where the compaction
+    law has stiffened 130-fold and locks at 0.19) is homogeneously compacted: each plate's force equals the law's
+    P33(lam) times the area with lam measured from the plies' faces, within 3 % at the end (a quasi-static point:
+    the plates stop there; the force fluctuates by about 1 % from the ringing of the stiff compacted block, and
+    dlnF/dln(lam) is about 10 there, so 0.1 % of thickness is 1 % of force); the two plates' forces balance to 3 %;
+    kinetic energy below 1e-3 of the internal energy at the end; friction (mu = 0.2, holding the free block) does
+    nothing (the law has no in-plane compaction stress, so the faces do not slide): below 1e-4 of the tools' work;
+    energy balance within 1 %. Measured: lam 0.509, upper / law 0.995, lower / law 0.997 (1146 N), balance
+    4.6e-4."""
+    lam = 0.5
+    travel = GAP + H0 * (1.0 - lam) / 2.0
+
+    _, res, h = run_data(pinch_deck(travel))
     assert res.status == "completed", res.message
     assert finite(h)
     end = slice(-5, None)  # the last 2.5 % of the run, where the plates have (nearly) stopped
@@ -182,25 +188,7 @@ def test_3weave_block_pinched_towards_the_lock_stops_where_the_law_loses_ellipti
     lam = 0.15
     travel = GAP + H0 * (1.0 - lam) / 2.0
 
-    def tool(z, n):
-        return {"shape": "plane", "point": [0, 0, z], "normal": [0, 0, n]}
-
-    data = {
-        "mesh": {"block": {"size": [WB, WB, H0], "divisions": [2, 2, 2]},
-                 "node_sets": {"top": {"box": [[0, 0, H0], [WB, WB, H0]]},
-                               "bottom": {"box": [[0, 0, 0], [WB, WB, 0]]}}},
-        "materials": {"f": {"type": "3weave"}},
-        "sections": [{"material": "f", "formulation": "fbar"}],
-        "tools": {"upper": {"surface": tool(H0 + GAP, -1), "motion": {"direction": [0, 0, -1], "value": travel}},
-                  "lower": {"surface": tool(-GAP, 1), "motion": {"direction": [0, 0, 1], "value": travel}}},
-        "contact": [{"tool": t, "normal": {"law": "linear", "stiffness": 1000.0}, "friction": {"static": 0.2}}
-                    for t in ("upper", "lower")],
-        "steps": [{"duration": 0.02}],
-        "output": {"history_points": 200, "measures": [
-            {"type": "node_displacement", "name": "top", "nodes": "top", "component": "z"},
-            {"type": "node_displacement", "name": "bottom", "nodes": "bottom", "component": "z"}]},
-    }
-    _, res, h = run_data(data)
+    _, res, h = run_data(pinch_deck(travel))
     assert res.status == "failed"
     assert re.search(r"non-finite energy .* at node \d+ .* at t = [0-9.e-]+ s", res.message), res.message
     lam_last = (H0 + h["top"][-1] - h["bottom"][-1]) / H0
