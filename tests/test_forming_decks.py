@@ -17,7 +17,7 @@ from typer.testing import CliRunner
 from fdeck.cli import app
 
 FORMING = Path(__file__).resolve().parents[1] / "decks" / "forming"
-DECKS = sorted(FORMING.glob("*.yaml"))
+DECKS = sorted(d for d in FORMING.glob("*.yaml") if not d.name.startswith("_"))  # "_NAME": a resolved study deck
 SMALL = [d for d in DECKS if d.stem.endswith(("_coarse", "_medium"))]
 NUMBER = r"([0-9.]+(?:e[-+]?\d+)?)"
 

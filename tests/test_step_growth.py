@@ -1,0 +1,73 @@
+"""The stable step follows a fall at once and grows by at most STEP_GROWTH per cycle (engine.solver): a bound that
+flickers from cycle to cycle (an element entering and leaving a stiff branch) must not make the run alternate
+between a short and a long step."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import fdeck.physics  # noqa: F401  (registers plug-ins)
+from fdeck.compile.problem import compile_deck
+from fdeck.deck.model import Deck
+from fdeck.engine import solver
+from fdeck.engine.effect import Effect
+
+pytestmark = pytest.mark.verification
+
+DECK = {"mesh": {"block": {"size": [1.0, 1.0, 1.0], "divisions": [1, 1, 1]}},
+        "materials": {"m": {"type": "linear_elastic", "density": 1e-9, "youngs_modulus": 1000.0,
+                            "poisson_ratio": 0.3}},
+        "sections": [{"material": "m", "formulation": "reduced"}],
+        "steps": [{"duration": 1.0, "max_cycles": 300}], "output": {"history_points": 2}}
+
+
+class Flicker(Effect):
+    """A bound of 0.4 x the element step on every other call between calls 50 and 150, none otherwise; records the
+    time of every force call (one per cycle), so the steps the engine took are the differences."""
+
+    name = "flicker"
+    forces = "internal"
+
+    def __init__(self, short: float):
+        self.short, self.calls, self.times = short, 0, []
+
+    def add_force(self, t, x, v, f):
+        self.times.append(t)
+
+    def stable_dt(self):
+        self.calls += 1
+        return self.short if 50 <= self.calls < 150 and self.calls % 2 == 0 else math.inf
+
+
+def steps_taken(growth: float, monkeypatch) -> tuple[np.ndarray, float, float]:
+    """(steps (n,) [s], the element's own step x dt_safety, the flicker's short bound x dt_safety)."""
+    monkeypatch.setattr(solver, "STEP_GROWTH", growth)
+    problem = compile_deck(Deck.model_validate(DECK))
+    own = min(g.stable_dt() for g in problem.groups)
+    flicker = Flicker(0.4 * own)
+    problem.effects.append(flicker)
+    res = solver.run(problem, solver.Sink())
+    assert res.cycles == 300, res.message
+    safety = problem.steps[0].dt_safety
+    return np.diff(flicker.times), safety * own, safety * flicker.short
+
+
+def test_a_flickering_bound_keeps_the_step_short_and_it_regrows_by_two_percent_per_cycle(monkeypatch):
+    """Requirement: while the bound flickers, no step exceeds the short step times STEP_GROWTH (relative 1e-12: the
+    step is the short one or one growth after it); afterwards the step regrows geometrically, each step at most 1.02
+    times the last, and reaches the element's own step within ceil(ln(1 / 0.4) / ln 1.02) = 47 cycles of the last
+    short bound (exact count plus one for the cycle the bound is read); never above the element's own. Without the
+    limit (growth = inf) the steps alternate between the two (the failure this guards against)."""
+    steps, own, short = steps_taken(solver.STEP_GROWTH, monkeypatch)
+    ratio = steps[1:] / steps[:-1]
+    assert ratio.max() <= solver.STEP_GROWTH * (1 + 1e-12)
+    during = steps[60:145]  # well inside the flicker (calls 50-149; a call precedes its cycle)
+    assert during.max() <= short * solver.STEP_GROWTH * (1 + 1e-12) and during.min() == pytest.approx(short, rel=1e-12)
+    regrow = math.ceil(math.log(own / short) / math.log(solver.STEP_GROWTH))
+    assert np.all(steps[150 + regrow + 1:] == pytest.approx(own, rel=1e-12))
+    assert steps.max() <= own * (1 + 1e-12)
+    free, own, short = steps_taken(math.inf, monkeypatch)
+    assert free[60:150].max() == pytest.approx(own, rel=1e-12) and free[60:150].min() == pytest.approx(short, rel=1e-12)
