@@ -171,3 +171,24 @@ def test_fillets_that_do_not_fit_are_refused_where_they_are_written():
                        ({"v_axis": [2, 0, 0]}, "must not be parallel")):
         with pytest.raises(Exception, match=words):
             Deck.model_validate(deck({**tight, **bad}))
+
+
+def test_a_ridge_of_two_meeting_fillets_is_a_half_cylinder_on_two_walls():
+    """Requirement: fillets that take a segment whole leave no line piece (the arcs meet, tangent), and an end
+    segment taken whole keeps its direction. A ridge walked up x = -10, across z = 0 and down x = 10 with radius 10
+    is a half cylinder of radius 10 about (0, -10) on two vertical walls: at 2 000 random points the signed distance
+    is |q - c| - 10 above z = -10 and |x| - 10 below, the closed forms, within 1e-9 mm (including the top's common
+    radius x = 0, where the two arcs meet); a corner whose fillet takes the whole first segment leaves the open start
+    along that segment's line (distance = z beyond it)."""
+    card = Profile(shape="profile", points=[(-10, -30), (-10, 0), (10, 0), (10, -30)], radii=10.0)
+    assert [q[0] for q in profile.pieces(card.points, card.radii)] == ["line", "arc", "arc", "line"]
+    kind, p = analytic.pack(card)
+    rng = np.random.default_rng(11)
+    pts = np.column_stack([rng.uniform(-25, 25, 2000), rng.uniform(-3, 3, 2000), rng.uniform(-40, 15, 2000)])
+    pts[:20, 0] = 0.0  # on the common radius of the two arcs
+    for x, y, z in pts:
+        expected = math.hypot(x, z + 10.0) - 10.0 if z >= -10.0 else abs(x) - 10.0
+        assert analytic.distance(kind, p, x, y, z)[0] == pytest.approx(expected, abs=1e-9), (x, z)
+    kind, p = analytic.pack(Profile(shape="profile", points=[(-5, 0), (0, 0), (0, -20)], radii=5.0))
+    assert [q[0] for q in profile.pieces([(-5, 0), (0, 0), (0, -20)], 5.0)] == ["line", "arc", "line"]
+    assert analytic.distance(kind, p, -20.0, 0.0, 3.0)[0] == pytest.approx(3.0, abs=1e-12)

@@ -60,7 +60,14 @@ def pieces(points, radii) -> list[tuple]:
                              f"{cut[k].sum():.4g} mm of its {length[k]:.4g} mm: reduce their radii")
     out = []
     for k in range(n - 1):
-        out.append(("line", P[k] + cut[k, 0] * t[k], P[k + 1] - cut[k, 1] * t[k], k == 0, k == n - 2))
+        a, b = P[k] + cut[k, 0] * t[k], P[k + 1] - cut[k, 1] * t[k]
+        whole = np.linalg.norm(b - a) <= 1e-12 * length[k]  # the fillets took the whole segment
+        if whole and k == 0:  # an open end keeps its line: only its direction matters beyond the fillet
+            a = b - t[k]
+        elif whole and k == n - 2:
+            b = a + t[k]
+        if not whole or k in (0, n - 2):  # an inner segment taken whole leaves the two arcs meeting, tangent
+            out.append(("line", a, b, k == 0, k == n - 2))
         if k < n - 2:
             out.append(("arc", *arcs[k]))
     return out
@@ -120,8 +127,10 @@ def distance(p, x0, x1, x2):
             cu, cv, r, turn = p[o + 1], p[o + 2], p[o + 3], p[o + 4]
             du, dv = qu - cu, qv - cv
             L = math.sqrt(du * du + dv * dv)
-            if L == 0.0 or (du * p[o + 5] + dv * p[o + 6]) < L * p[o + 7]:
-                continue  # the centre itself, or outside the arc's sector
+            # the centre itself, or outside the arc's sector (its edges included, by a round-off margin: where two
+            # arcs meet with no line between them, a point on their common radius belongs to both)
+            if L == 0.0 or (du * p[o + 5] + dv * p[o + 6]) < L * (p[o + 7] - 1e-12):
+                continue
             dist = abs(L - r)
             if dist < best:
                 best = dist
