@@ -143,7 +143,7 @@ class Outputs(solver.Sink):
     Each frame also carries the point fields of the measures that have some (``point_fields(x) -> {name: (n_node,)
     array}``, e.g. ``wrinkle``; two measures giving the same name are merged with fmax), each also as the cell field
     ``<name>_element`` (the largest value at the element's nodes, ``cell_max``), the effects' nodal fields
-    (``Effect.point_fields``: contact pressure, gap, status and slip), and the surfaces of the
+    (``Effect.node_fields``: contact pressure, gap, status and slip), and the surfaces of the
     effects that have bodies (``Effect.surfaces()``: rigid tools), written as blocks of their own."""
 
     def __init__(self, problem, out_dir: Path, name: str, progress, digests: dict | None = None,
@@ -186,11 +186,16 @@ class Outputs(solver.Sink):
             for name, val in (m.point_fields(x) if hasattr(m, "point_fields") else {}).items():
                 point[name] = np.fmax(point[name], val) if name in point else np.array(val, copy=True)
                 measured[name] = None
-        n_node = len(self.problem.X)
-        for e in self.problem.effects:  # an effect's nodal fields (contact pressure, ...), merged across effects
-            for name, (val, merge) in e.point_fields(n_node).items():
-                join = np.fmax if merge == "max" else np.fmin
-                point[name] = join(point[name], val) if name in point else np.array(val, float)
+        covered = {}  # name -> (n_node,) bool: nodes some effect gave a value of that field
+        for e in self.problem.effects:  # an effect's nodal fields (contact pressure, ...), merged at shared nodes
+            for name, (nodes, val, merge, elsewhere) in e.node_fields().items():
+                if name not in covered:
+                    point[name] = np.full(len(self.problem.X), elsewhere, float)
+                    covered[name] = np.zeros(len(self.problem.X), bool)
+                join = np.maximum if merge == "max" else np.minimum  # a NaN wins: a failed run's frame shows it
+                seen = covered[name][nodes]
+                point[name][nodes] = np.where(seen, join(point[name][nodes], val), val)
+                covered[name][nodes] = True
         surfaces = [s for e in self.problem.effects for s in e.surfaces()]
         with np.errstate(invalid="ignore", divide="ignore"):  # an inverted element's last frame holds NaN by design
             cells = assemble_cells(self.problem)

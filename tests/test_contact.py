@@ -149,11 +149,12 @@ def _frame(problem, res, tmp_path):
 
 
 def test_frames_carry_contact_pressure_gap_and_status(tmp_path):
-    """Requirement: each frame holds the contact fields per node. For the block resting on the plane (linear law,
-    k = 200 MPa/mm): the bottom face sinks by h = m g / (k A) (1 %, as the resting test), and there
-    gap = -h (1e-9 relative: both read the same positions), pressure = k h (1e-9), status 1 (in contact, no friction), and the pressures times the nodes'
-    tributary areas (6.25 / 12.5 / 25 mm^2 for corner / edge / centre node) carry the weight m g (1 %, as the
-    resting test); on the top face pressure 0, status 0 and gap 5 mm less h (the plane's distance, 1e-9)."""
+    """Requirement: each frame holds the contact fields per node. For the block resting on the plane (linear law, k =
+    200 MPa/mm): the bottom face sinks by h = m g / (k A) (1 %, as the resting test), and there gap = -h (1e-9
+    relative: both read the same positions), pressure = k h (1e-9), status 1 (in contact, no friction), and the
+    pressures times the nodes' tributary areas (6.25 / 12.5 / 25 mm^2 for corner / edge / centre node) carry the
+    weight m g (1 %, as the resting test); on the top face pressure 0, status 0 and gap 5 mm less h (the plane's
+    distance, 1e-9)."""
     problem, res, _ = block([{"duration": 0.05, "damping": {"mass_proportional": 400.0}}],
                             [{"type": "gravity", "acceleration": [0, 0, -G]}])
     assert res.status == "completed", res.message
@@ -174,11 +175,11 @@ def test_frames_carry_contact_pressure_gap_and_status(tmp_path):
 
 
 def test_block_resting_under_the_exponential_law_sits_at_zero_clearance(tmp_path):
-    """Requirement (MODELS 7): the exponential law's pressure at zero clearance is p0. A block whose weight per
-    area m g / A is chosen as p0 (0.049 MPa) settles where the bottom face's gap is 0: the frame's contact_gap
-    within 1e-3 c0 of 0 (c0 = 0.01 mm; the slope there, p0 (1 + 1/(e-1))/c0, makes 1e-3 c0 a 0.16 % pressure error,
-    above the damped rest's residue) and contact_pressure within 1 % of p0 at every bottom node, and the floor
-    carries the weight (1 %)."""
+    """Requirement (MODELS 7): the exponential law's pressure at zero clearance is p0. A block whose weight per area m
+    g / A is chosen as p0 (0.049 MPa) settles where the bottom face's gap is 0: the frame's contact_gap within 1e-3
+    c0 of 0 (c0 = 0.01 mm; the slope there, p0 (2e - 1) / ((e - 1) c0) = 2.58 p0 / c0, makes 1e-3 c0 a 0.26 %
+    pressure error, above the damped rest's residue) and contact_pressure within 1 % of p0 at every bottom node, and
+    the floor carries the weight (1 %)."""
     weight = 1e-6 * 500.0 * G
     p0 = weight / 100.0
     extra = {"contact": [{"tool": "floor", "normal": {"law": "exponential", "p0": p0, "c0": 0.01,
@@ -191,6 +192,31 @@ def test_block_resting_under_the_exponential_law_sits_at_zero_clearance(tmp_path
     assert np.abs(pd["contact_gap"][bottom]).max() < 1e-3 * 0.01
     np.testing.assert_allclose(pd["contact_pressure"][bottom], p0, rtol=0.01)
     assert h["tool_floor_force_z"][-1] == pytest.approx(weight, rel=0.01)
+
+
+def test_contact_fields_of_several_tools_merge_at_the_nodes_they_share(tmp_path):
+    """Requirement: where several effects give a field at the same node, the frame holds the largest (pressure,
+    status, slip) or the smallest (gap) of their values, a NaN wins (a failed run's last frame must show it, not
+    hide it behind another tool's value), and nodes no effect gives hold the field's value elsewhere (NaN gap, 0
+    for the rest). Two stand-in effects on overlapping node sets of the resting block's problem, checked exactly."""
+    from fdeck.engine.effect import Effect
+
+    class Stand(Effect):
+        def __init__(self, nodes, pressure, gap):
+            self.fields = {"contact_pressure": (nodes, pressure, "max", 0.0),
+                           "contact_gap": (nodes, gap, "min", np.nan)}
+
+        def node_fields(self):
+            return self.fields
+
+    problem, res, _ = block([{"duration": 1e-4}], [])
+    problem.effects[:] = [Stand(np.array([0, 1, 2]), np.array([1.0, np.nan, 3.0]), np.array([0.5, 0.2, -0.1])),
+                          Stand(np.array([2, 3]), np.array([2.0, 4.0]), np.array([0.3, np.nan]))]
+    pd = _frame(problem, res, tmp_path)
+    p, g = pd["contact_pressure"], pd["contact_gap"]
+    np.testing.assert_array_equal(p[:4], [1.0, np.nan, 3.0, 4.0])
+    np.testing.assert_array_equal(g[:4], [0.5, 0.2, -0.1, np.nan])
+    assert np.all(p[4:] == 0.0) and np.all(np.isnan(g[4:]))
 
 
 def test_frames_carry_the_slip_of_a_sliding_block(tmp_path):

@@ -34,9 +34,9 @@ def test_the_deck_list_is_the_issue_s():
 def test_validates_and_info_prints_tools_pairs_and_step_bounds(deck):
     """Requirement: `fdeck validate` exits 0 with "ok"; `fdeck info` exits 0 and prints one line per tool of the deck
     ("tool NAME: ..."), one per contact pair ("contact with tool 'NAME': N blank nodes, ..., step bound sqrt(m/k) =
-    DT s") with N > 0 and DT finite, and the rest stable step of each step, which is at most the smallest contact
-    bound (to the 4 digits printed: the engine's step honours the contact springs; the deck's tool and contact
-    names are read from its YAML, independently of the compiler)."""
+    DT s") with N > 0 and DT finite, and the rest stable step of each step, which includes those bounds (at most
+    the smallest, to the 4 digits printed); the deck's tool and contact names are read from its YAML, independently
+    of the compiler."""
     runner = CliRunner()
     r = runner.invoke(app, ["validate", str(deck)])
     assert r.exit_code == 0 and ": ok" in r.output, r.output

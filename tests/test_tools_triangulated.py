@@ -189,7 +189,8 @@ def abaqus_floor(tmp_path, half=40.0, n=4):
         for j in range(n):
             e += 1
             lines.append(f"{e}, {ids[i, j]}, {ids[i + 1, j]}, {ids[i + 1, j + 1]}, {ids[i, j + 1]}")
-    lines += ["*Element, type=R3D3, elset=RAISED", f"{e + 1}, {k + 1}, {k + 2}, {k + 3}", f"{e + 2}, {k + 1}, {k + 3}, {k + 4}"]
+    lines += ["*Element, type=R3D3, elset=RAISED", f"{e + 1}, {k + 1}, {k + 2}, {k + 3}",
+              f"{e + 2}, {k + 1}, {k + 3}, {k + 4}"]
     path = tmp_path / "floors.inp"
     path.write_text("\n".join(lines) + "\n")
     return path

@@ -96,8 +96,8 @@ class Profile(_Shape):
 
     shape: Literal["profile"]
     points: list[tuple[float, float]] = Field(min_length=2, description="Corners (u, v) of the polyline [mm].")
-    radii: float | list[float] = Field(description="Fillet radius at each interior corner [mm], > 0 (one value for "
-                                                   "all, or one per interior point).")
+    radii: float | list[float] = Field([], description="Fillet radius at each interior corner [mm], > 0 (one value "
+                                                       "for all, or one per interior point; none for two points).")
     origin: Vector = Field((0.0, 0.0, 0.0), description="Where (u, v) = (0, 0) lies [mm].")
     u_axis: Vector = Field((1.0, 0.0, 0.0), description="Direction of the profile's first coordinate.")
     v_axis: Vector = Field((0.0, 0.0, 1.0), description="Direction of its second coordinate (made normal to u).")

@@ -91,9 +91,10 @@ class Effect:
         or None when its name says enough."""
         return None
 
-    def point_fields(self, n_node: int) -> dict[str, tuple[np.ndarray, str]]:
-        """Nodal fields of the effect for every frame: {name: ((n_node,) values, merge)}, merge "max" or "min"
-        naming how the fields of one name from several effects combine (NaN: no value there); empty by default."""
+    def node_fields(self) -> dict[str, tuple[np.ndarray, np.ndarray, str, float]]:
+        """Nodal fields of the effect for every frame: {name: (nodes (k,), values (k,), merge, elsewhere)}, merge
+        "max" or "min" naming how the values of several effects at one node combine (a NaN wins), ``elsewhere`` the
+        value at nodes no effect gives; empty by default."""
         return {}
 
     def surfaces(self) -> list[tuple[str, np.ndarray, np.ndarray]]:

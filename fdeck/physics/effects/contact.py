@@ -45,7 +45,7 @@ that the node stays stable with the element stiffness added (up to three times t
 ringing, which the ledger sees at the dt^2 omega^2 / 8 level of central differences, stays small.
 
 Output: every frame carries the contact pressure, gap, status (open / stick / slip) and accumulated slip of each
-blank node (``point_fields``; the pairs of several tools merged by ``run.Outputs``).
+blank node (``node_fields``; the pairs of several tools merged by ``run.Outputs``).
 
 Broad phase against a triangulated tool: the tool's grid (``tools.triangulated``) answers a node's query with one
 cell look-up; a node found out of reach at its last query (its distance to the nearest triangle minus its offset and
@@ -149,8 +149,9 @@ def query_mesh(x, nodes, P, T, face_n, edge_n, vert_n, rim_e, rim_v, lo, h, dims
     reach (k,) [mm]: the distance from the tool within which a node can feel a force (its offset plus the law's
     clearance); xq (k, 3), uq (k, 3): node position and tool translation at each node's last query; slack (k,) [mm]:
     its distance to the nearest triangle then (negative inside the tool), less its reach. A node whose travel
-    relative to the tool since then, |x - xq| + |u - uq|, is below its slack is still out of reach: it is reported far (d = r, normal 0, no force,
-    exactly what a query gives beyond r) without a query. All updated in place; one node per iteration."""
+    relative to the tool since then, |x - xq| + |u - uq|, is below its slack is still out of reach: it is reported
+    far (d = r, normal 0, no force, exactly what a query gives beyond r) without a query. All updated in place; one
+    node per iteration."""
     for i in prange(nodes.shape[0]):
         a = nodes[i]
         moved = math.sqrt((x[a, 0] - xq[i, 0]) ** 2 + (x[a, 1] - xq[i, 1]) ** 2 + (x[a, 2] - xq[i, 2]) ** 2)
@@ -177,12 +178,12 @@ def contact_forces(x, nodes, dist, nrm, area, vec, offset, two_sided, u, law, kt
     [mm]; two_sided (k,) bool (shell nodes); u (3,) tool translation, u_prev (3,) at the last call; law (8,); kt (k,)
     stick stiffness [N/mm]; x_prev (k, 3) node positions at the last call (updated); ft (k, 3) tangential force
     (updated); status (k,) 0 open, 1 stick, 2 slip (updated); slip (k,) [mm] the node's tangential travel relative to
-    the tool summed over the calls that find it in contact (updated); last (k, 2) the node's area A [mm^2] and normal energy
-    per area [mJ/mm^2] at the last call (A < 0 before the first; updated). Outputs f (k, 3) force of the tool on each
-    node [N], gap, pressure (k,) [mm, MPa], energy (k,) stored normal + stick energy [mJ], dissipated (k,) friction
-    dissipation of this call [mJ], area_work (k,) the work of this call's change of A [mJ] (module docstring,
-    *Area*); f is also subtracted from the engine's internal forces f_int (n_node, 3) (resisting sign; the
-    nodes of a pair are distinct, so the writes do not race).
+    the tool summed over the calls that find it in contact (updated); last (k, 2) the node's area A [mm^2] and
+    normal energy per area [mJ/mm^2] at the last call (A < 0 before the first; updated). Outputs f (k, 3) force of
+    the tool on each node [N], gap, pressure (k,) [mm, MPa], energy (k,) stored normal + stick energy [mJ],
+    dissipated (k,) friction dissipation of this call [mJ], area_work (k,) the work of this call's change of A [mJ]
+    (module docstring, *Area*); f is also subtracted from the engine's internal forces f_int (n_node, 3) (resisting
+    sign; the nodes of a pair are distinct, so the writes do not race).
     """
     for i in prange(nodes.shape[0]):
         a = nodes[i]
@@ -320,8 +321,9 @@ class RigidContact(Effect):
             ratio = depth / limit
             worst = int(np.argmax(ratio))
             if ratio[worst] > 1.0:
-                out.append(f"tool '{self.tool.tool}' moves at up to {speed:.4g} mm/s in step '{plan.name}': the contact "
-                           f"stiffness stops a node only after a penetration v sqrt(m/k) = {depth[worst]:.3g} mm, "
+                out.append(f"tool '{self.tool.tool}' moves at up to {speed:.4g} mm/s in step '{plan.name}': the "
+                           f"contact stiffness stops a node only after a penetration v sqrt(m/k) = "
+                           f"{depth[worst]:.3g} mm, "
                            f"beyond the {limit[worst]:.3g} mm it may cross (node {self.nodes[worst] + 1}); it would "
                            f"pass through. Raise the normal stiffness to at least "
                            f"{max_slope(self.law) * ratio[worst] ** 2:.3g} MPa/mm or slow the tool")
@@ -343,7 +345,8 @@ class RigidContact(Effect):
         self.query(x, u_call)
         contact_forces(x, self.nodes, self.dist, self.nrm, self.area, self.vec, self.offset, self.two_sided, u_call,
                        self.law, self.kt, self.mu_s, self.mu_d, self.x_prev, self.u_force, self.ft, self.status,
-                       self.slip, self.last, self.f, self.gap, self.pressure, self.energy, self.dissipated, self.area_work, f)
+                       self.slip, self.last, self.f, self.gap, self.pressure, self.energy, self.dissipated,
+                       self.area_work, f)
         force = self.f.sum(axis=0)
         self.work += 0.5 * float(np.dot(self.force + force, u_call - self.u_force))
         self.force, self.u_force = force, u_call
@@ -354,21 +357,17 @@ class RigidContact(Effect):
     def stable_dt(self):
         return self.dt
 
-    def point_fields(self, n_node):
-        """The contact's nodal fields at the last call, for every frame (several tools merged by ``run.Outputs``):
-        contact_pressure [MPa] (largest over the tools), contact_gap [mm] (smallest; NaN at nodes that are no contact
-        node; against a triangulated tool at most its search distance less the node's offset, since farther nodes
-        are not queried), contact_status (0 open, 1 stick, 2 slip; largest) and contact_slip [mm] (the node's
-        tangential travel relative to the tool while in contact, accumulated over the run; largest)."""
-        out = {}
-        for name, values, merge, empty in (("contact_pressure", self.pressure, "max", 0.0),
-                                           ("contact_gap", self.gap, "min", np.nan),
-                                           ("contact_status", self.status, "max", 0.0),
-                                           ("contact_slip", self.slip, "max", 0.0)):
-            field = np.full(n_node, empty)
-            field[self.nodes] = values
-            out[name] = (field, merge)
-        return out
+    def node_fields(self):
+        """The contact's nodal fields at the last call, for every frame (the pairs of several tools merged by
+        ``run.Outputs`` at the nodes they share): contact_pressure [MPa] (largest), contact_gap [mm] (smallest; NaN at
+        nodes that are no contact node; against a triangulated tool a node out of its reach shows the search distance
+        less its offset, since such nodes are not queried), contact_status (0 open, 1 in contact: sticking, or
+        frictionless; 2 slipping; largest) and contact_slip [mm] (the node's tangential travel relative to the tool
+        while in contact, accumulated over the run; largest)."""
+        return {"contact_pressure": (self.nodes, self.pressure, "max", 0.0),
+                "contact_gap": (self.nodes, self.gap, "min", np.nan),
+                "contact_status": (self.nodes, self.status.astype(float), "max", 0.0),
+                "contact_slip": (self.nodes, self.slip, "max", 0.0)}
 
     def describe(self, plan) -> str:
         self.begin_step(0, plan)

@@ -22,8 +22,8 @@ PLANE, SPHERE, CYLINDER, ROUNDED_BOX, PROFILE = 0, 1, 2, 3, 4
 
 
 def pack(surface) -> tuple[int, np.ndarray]:
-    """(kind, params (8,)) of a surface card (``fdeck.cards.contact.Plane`` / ``Sphere`` / ``Cylinder`` /
-    ``RoundedBox``)."""
+    """(kind, params) of a surface card (``fdeck.cards.contact.Plane`` / ``Sphere`` / ``Cylinder`` / ``RoundedBox``:
+    params (8,); ``Profile``: ``profile.pack``'s longer array)."""
     if surface.shape == "profile":
         return PROFILE, profile.pack(surface)
     p = np.zeros(8)

@@ -109,20 +109,20 @@ def distance(p, x0, x1, x2):
             L = math.sqrt(eu * eu + ev * ev)
             tu, tv = eu / L, ev / L
             s = (qu - au) * tu + (qv - av) * tv
-            if s < 0.0 and p[o + 5] == 0.0:
-                s = 0.0
-            if s > L and p[o + 6] == 0.0:
-                s = L
-            fu, fv = qu - (au + s * tu), qv - (av + s * tv)
             side = tu * (qv - av) - tv * (qu - au)  # along the left normal (-tv, tu)
+            if (s >= 0.0 or p[o + 5] != 0.0) and (s <= L or p[o + 6] != 0.0):
+                # the foot lies on the piece (or on an open end's continuation): the line's own distance and
+                # normal, not the foot vector, whose part along the line is round-off
+                if abs(side) < best:
+                    best, d_best, nu, nv = abs(side), side, -tv, tu
+                continue
+            s = 0.0 if s < 0.0 else L  # beyond a closed end: towards that end point
+            fu, fv = qu - (au + s * tu), qv - (av + s * tv)
             dist = math.sqrt(fu * fu + fv * fv)
             if dist < best:
                 sign = 1.0 if side >= 0.0 else -1.0
                 best, d_best = dist, sign * dist
-                if dist > 0.0:
-                    nu, nv = sign * fu / dist, sign * fv / dist
-                else:
-                    nu, nv = -tv, tu
+                nu, nv = (sign * fu / dist, sign * fv / dist) if dist > 0.0 else (-tv, tu)
         else:
             cu, cv, r, turn = p[o + 1], p[o + 2], p[o + 3], p[o + 4]
             du, dv = qu - cu, qv - cv

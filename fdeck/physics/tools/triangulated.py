@@ -76,7 +76,9 @@ def _read_mesh(path: Path):
     text = re.sub(r"(type\s*=\s*)R3D4\b", r"\1S4R", text, flags=re.I)
     from meshio.abaqus._abaqus import read_buffer
 
-    return read_buffer(io.StringIO(text))
+    buffer = io.StringIO(text)
+    buffer.name = str(path)  # meshio finds *INCLUDE files beside it (R3D4 elements inside those are not rewritten)
+    return read_buffer(buffer)
 
 
 def read(path: Path, part: str | None = None) -> tuple[np.ndarray, np.ndarray]:
