@@ -148,9 +148,9 @@ def test_block_on_the_profile_flange_runs_as_on_the_analytic_plane():
 
 
 def test_fillets_that_do_not_fit_are_refused_where_they_are_written():
-    """Requirement: a profile whose fillets need more of a segment than it has is a located compile error at the
-    tool's surface naming the segment; a radius list of the wrong length, a zero radius and parallel axes are deck
-    errors at the surface."""
+    """Requirement: a profile whose fillets need more of a segment than it has, or that crosses itself (its open
+    ends continued), is a located compile error at the tool's surface naming the segments; a radius list of the
+    wrong length, a zero radius and parallel axes are deck errors at the surface."""
     from fdeck.compile.errors import CompileError
     from fdeck.compile.problem import compile_deck
     from fdeck.deck.model import Deck
@@ -168,6 +168,11 @@ def test_fillets_that_do_not_fit_are_refused_where_they_are_written():
         compile_deck(Deck.model_validate(deck(tight)))
     ((path, message),) = info.value.problems
     assert path == ("tools", "die", "surface") and "segment 2 (points 2-3) need 16 mm of its 10 mm" in message
+    crossed = {"shape": "profile", "points": [[0, 0], [10, 0], [10, 10], [5, -5]], "radii": 1.0}
+    with pytest.raises(CompileError) as info:
+        compile_deck(Deck.model_validate(deck(crossed)))
+    ((path, message),) = info.value.problems
+    assert path == ("tools", "die", "surface") and "crosses itself: segments 1 and 3" in message
     for bad, words in (({"radii": [1.0]}, "lists 1 values for 2 interior points"), ({"radii": 0.0}, "> 0"),
                        ({"v_axis": [2, 0, 0]}, "must not be parallel")):
         with pytest.raises(Exception, match=words):

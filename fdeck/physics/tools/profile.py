@@ -36,6 +36,9 @@ def pieces(points, radii) -> list[tuple]:
     if np.any(length <= 0.0):
         raise ValueError(f"points {int(np.argmin(length)) + 1} and {int(np.argmin(length)) + 2} coincide")
     t = seg / length[:, None]
+    crossing = _crossing(P, t)
+    if crossing:
+        raise ValueError(crossing)
     cut = np.zeros((n - 1, 2))  # length taken from each segment's start and end by the fillets
     arcs = []
     for k in range(1, n - 1):
@@ -71,6 +74,26 @@ def pieces(points, radii) -> list[tuple]:
         if k < n - 2:
             out.append(("arc", *arcs[k]))
     return out
+
+
+def _crossing(P: np.ndarray, t: np.ndarray) -> str:
+    """A message when the polyline, its open ends continued as rays, crosses itself (the blank's side would then be
+    both sides of the surface somewhere), else ""."""
+    reach = 1e6 * (1.0 + float(np.abs(P).max()))  # a ray as a segment far beyond the profile
+    ends = [[P[k].copy(), P[k + 1].copy()] for k in range(len(P) - 1)]
+    ends[0][0] = P[0] - reach * t[0]
+    ends[-1][1] = P[-1] + reach * t[-1]
+
+    def cross(o, a, b):
+        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+
+    for i in range(len(ends)):
+        for j in range(i + 2, len(ends)):
+            (a, b), (c, d) = ends[i], ends[j]
+            if cross(a, b, c) * cross(a, b, d) < 0.0 and cross(c, d, a) * cross(c, d, b) < 0.0:
+                return (f"the profile crosses itself: segments {i + 1} and {j + 1} (points {i + 1}-{i + 2} and "
+                        f"{j + 1}-{j + 2}; the first and last continued beyond their end points)")
+    return ""
 
 
 def pack(surface) -> np.ndarray:
