@@ -55,7 +55,7 @@ def pieces(points, radii) -> list[tuple]:
         c = start + turn * r * left
         end = P[k] + tan_len * b
         mid = (start + end) / 2.0 - c
-        mid = mid / np.linalg.norm(mid) if np.linalg.norm(mid) > 0.0 else turn * -left
+        mid = mid / np.linalg.norm(mid)  # not zero: a turn of 179 degrees or more was refused above
         arcs.append((c, r, turn, mid, math.cos(0.5 * abs(phi))))
     for k in range(n - 1):
         if cut[k].sum() > length[k] * (1.0 + 1e-12):

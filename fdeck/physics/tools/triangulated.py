@@ -70,10 +70,9 @@ def _read_mesh(path: Path):
 
     if path.suffix.lower() != ".inp":
         return meshio.read(path)
-    text = path.read_text(errors="replace")
-    if not re.search(r"type\s*=\s*R3D4\b", text, flags=re.I):
+    text, rewritten = re.subn(r"(type\s*=\s*)R3D4\b", r"\1S4R", path.read_text(errors="replace"), flags=re.I)
+    if not rewritten:  # meshio reads it as it is (its public reader)
         return meshio.read(path)
-    text = re.sub(r"(type\s*=\s*)R3D4\b", r"\1S4R", text, flags=re.I)
     from meshio.abaqus._abaqus import read_buffer
 
     buffer = io.StringIO(text)
