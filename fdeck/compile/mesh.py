@@ -52,6 +52,56 @@ def block(origin, size, divisions=None, element_size=None) -> MeshArrays:
     return m
 
 
+def diagonal_block(origin, size, divisions=None, element_size=None) -> MeshArrays:
+    """Hexahedra whose edges in x-y run at +-45 deg (a diamond lattice extruded along z), for fabrics with fibres at
+    +-45 deg: an element can then shear along its fibres without stretching them (no intra-ply shear locking).
+
+    divisions (nx, ny, nz): nx, ny count half-diagonals d = size / n along x and y (even, so that the block's
+    corners are lattice nodes), nz layers; element_size h: the diamonds' edge, d = h / sqrt(2), nx, ny rounded up
+    to even. Lattice nodes (i, j) with i + j even; each diamond is centred at a point with i + j odd. A diamond cut
+    by a side of the block is one element too: the half-diamond, a triangle, as a hexahedron with one edge collapsed
+    (its corner beyond the side takes the next corner's node). A collapsed hexahedron interpolates linearly in the
+    triangle (a prism), so its two edges along the fibres stay fibre-aligned (a mid-side node on the block's side
+    instead would stretch the fibres at first order; tests/test_diagonal_lattice.py); its Jacobian is positive at
+    every integration point and zero along the collapsed edge. A 300 x 300 mm quarter with d = 3 mm (4.24 mm edges)
+    has 4 900 diamonds and 200 halves per layer, the 5 100 of the published +-45 meshes (MODELS.md 6.4). Node sets
+    xmin..zmax (faces) and `all`; element set `all`."""
+    if divisions is None:
+        divisions = [2 * max(1, math.ceil(s / (2 * element_size / math.sqrt(2)) - 1e-9)) for s in size[:2]]
+        divisions.append(max(1, math.ceil(size[2] / element_size - 1e-9)))
+    nx, ny, nz = divisions
+    if nx % 2 or ny % 2:
+        raise CompileError([(("mesh", "block", "divisions"),
+                             f"a diagonal lattice needs even divisions along x and y, got {nx} and {ny}")])
+    i, j = np.meshgrid(np.arange(nx + 1), np.arange(ny + 1), indexing="ij")
+    used = (i + j) % 2 == 0  # lattice nodes
+    plane = np.full((nx + 1, ny + 1), -1, np.int64)
+    plane[used] = np.arange(used.sum())
+    ci, cj = np.nonzero((i + j) % 2 == 1)
+    # corners counter-clockwise seen from +z: east, north, west, south; a corner beyond a side (at most one: the
+    # block's corners are nodes) takes the node of the corner after it
+    steps = np.array([(1, 0), (0, 1), (-1, 0), (0, -1)])
+    a, b = ci[:, None] + steps[:, 0], cj[:, None] + steps[:, 1]
+    out = (a < 0) | (a > nx) | (b < 0) | (b > ny)
+    a, b = np.where(out, np.roll(a, -1, axis=1), a), np.where(out, np.roll(b, -1, axis=1), b)
+    quad = plane[a, b]
+    layers = nz + 1
+    xy = np.stack([i[used], j[used]], 1) * (np.asarray(size[:2], float) / (nx, ny)) + np.asarray(origin[:2], float)
+    z = np.linspace(origin[2], origin[2] + size[2], layers)
+    X = np.column_stack([np.repeat(xy, layers, axis=0), np.tile(z, len(xy))])
+    k = np.arange(nz)
+    bottom = (quad[:, None, :] * layers + k[None, :, None]).reshape(-1, 4)
+    conn = np.concatenate([bottom, bottom + 1], axis=1)
+    node_i, node_j, node_k = np.repeat(i[used], layers), np.repeat(j[used], layers), np.tile(np.arange(layers), len(xy))
+    sets = {"all": np.arange(len(X)), "xmin": node_i == 0, "xmax": node_i == nx, "ymin": node_j == 0,
+            "ymax": node_j == ny, "zmin": node_k == 0, "zmax": node_k == nz}
+    sets = {name: (np.nonzero(s)[0] if s.dtype == bool else s) for name, s in sets.items()}
+    m = MeshArrays(X, {"hexahedron": conn}, sets)
+    m.ids = {"hexahedron": np.arange(1, len(conn) + 1)}
+    m.element_sets["all"] = {"hexahedron": np.arange(len(conn))}
+    return m
+
+
 def plate(origin, size, divisions=None, element_size=None, triangles=False) -> MeshArrays:
     """Structured quadrilaterals (or each split into two triangles) on the rectangle [origin, origin + size] in the
     plane z = origin[2], node order counter-clockwise seen from +z (normal +z). Node sets xmin, xmax, ymin, ymax

@@ -11,7 +11,7 @@ import numpy as np
 from fdeck import registry
 from fdeck.compile import amplitude
 from fdeck.compile.errors import CompileError
-from fdeck.compile.mesh import MeshArrays, add_box_sets, block, plate, read_file
+from fdeck.compile.mesh import MeshArrays, add_box_sets, block, diagonal_block, plate, read_file
 from fdeck.compile.orientation import element_orientation
 from fdeck.deck.errors import unknown_name
 from fdeck.deck.model import Deck
@@ -119,7 +119,8 @@ class Context:
 def load_mesh(deck: Deck, base: Path) -> MeshArrays:
     m = deck.mesh
     if m.block is not None:
-        mesh = block(m.block.origin, m.block.size, m.block.divisions, m.block.element_size)
+        make = diagonal_block if m.block.lattice == "diagonal" else block
+        mesh = make(m.block.origin, m.block.size, m.block.divisions, m.block.element_size)
     elif m.plate is not None:
         p = m.plate
         mesh = plate(p.origin, p.size, p.divisions, p.element_size, p.triangles)

@@ -65,6 +65,16 @@ class Block(_Structured):
     divisions: tuple[PositiveInt, PositiveInt, PositiveInt] | None = Field(
         None, description="Elements along x, y, z. Give this or `element_size`.")
     element_size: float | None = Field(None, gt=0, description="Target edge length [mm]; divisions = ceil(size/h).")
+    lattice: Literal["grid", "diagonal"] = Field(
+        "grid", description="`grid`: edges along x, y, z. `diagonal`: edges in x-y at +-45 deg (diamonds, the halves "
+        "cut by the sides one element each), for fibres at +-45 deg; divisions x, y then count half-diagonals "
+        "(even), element_size is the diamonds' edge.")
+
+    @model_validator(mode="after")
+    def _even_diagonal(self):
+        if self.lattice == "diagonal" and self.divisions is not None and (self.divisions[0] % 2 or self.divisions[1] % 2):
+            raise ValueError(f"a diagonal lattice needs even divisions along x and y, got {list(self.divisions[:2])}")
+        return self
 
 
 class BoxSet(Card):

@@ -61,7 +61,8 @@ def prepare(X: np.ndarray, conn: np.ndarray) -> dict:
     X (n_node, 3) reference coordinates; conn (n_el, 8). Returns dN (n_el, 8, 8, 3) gradients dN_a/dX at the
     2x2x2 points, w (n_el, 8) point volumes [mm^3], V0 (n_el,), b (n_el, 8, 3) uniform gradient, gamma
     (n_el, 4, 8) hourglass vectors, L0 (n_el,) characteristic length V0 / largest face area [mm], and
-    detJ_min (n_el,) the smallest Jacobian at the 2x2x2 points and the nodes (<= 0 means inverted/degenerate).
+    detJ_min (n_el,) the smallest Jacobian at the 2x2x2 points and the nodes (<= 0 means inverted/degenerate; a
+    node's Jacobian that is zero to round-off is left out).
     """
     xe = X[conn]  # (n_el, 8, 3)
     dxi = shape_gradients_local(GAUSS_2)  # (8, 8, 3)
@@ -69,7 +70,10 @@ def prepare(X: np.ndarray, conn: np.ndarray) -> dict:
     detJ = np.linalg.det(J)
     dxi_nodes = shape_gradients_local(NODE_SIGNS)
     detJ_nodes = np.linalg.det(np.einsum("eai,qaj->eqij", xe, dxi_nodes))
-    detJ_min = np.minimum(detJ.min(axis=1), detJ_nodes.min(axis=1))
+    # a node Jacobian zero to round-off is a straight angle (the half-diamonds of compile.mesh.diagonal_block) or a
+    # collapsed edge, which 2x2x2 and one-point integration never sample: the integration points decide there
+    flat = np.abs(detJ_nodes) <= 1e-9 * np.abs(detJ).mean(axis=1, keepdims=True)
+    detJ_min = np.minimum(detJ.min(axis=1), np.where(flat, np.inf, detJ_nodes).min(axis=1))
     safe = np.where(np.abs(detJ) > 0, detJ, 1.0)
     Jinv = np.linalg.inv(np.where(np.abs(detJ)[..., None, None] > 0, J, np.eye(3)))
     dN = np.einsum("qaj,eqji->eqai", dxi, Jinv)
