@@ -71,3 +71,66 @@ def test_a_flickering_bound_keeps_the_step_short_and_it_regrows_by_two_percent_p
     assert steps.max() <= own * (1 + 1e-12)
     free, own, short = steps_taken(math.inf, monkeypatch)
     assert free[60:150].max() == pytest.approx(own, rel=1e-12) and free[60:150].min() == pytest.approx(short, rel=1e-12)
+
+
+# a stiff element (E 16x) beside two soft ones: the soft elements' steps are 4x the stiff one's, so the subcycling
+# engine runs major cycles of 4 minor steps (levels 0 and 2) and reads the bounds once per major cycle
+SUBCYCLED = {"mesh": {"block": {"size": [3.0, 1.0, 1.0], "divisions": [3, 1, 1]},
+                      "element_sets": {"stiff": {"box": [[0, 0, 0], [1, 1, 1]]},
+                                       "soft": {"box": [[1, 0, 0], [3, 1, 1]]}}},
+             "materials": {"a": {"type": "linear_elastic", "density": 1e-9, "youngs_modulus": 16000.0,
+                                 "poisson_ratio": 0.3},
+                           "b": {"type": "linear_elastic", "density": 1e-9, "youngs_modulus": 1000.0,
+                                 "poisson_ratio": 0.3}},
+             "sections": [{"elements": "stiff", "material": "a", "formulation": "full"},
+                          {"elements": "soft", "material": "b", "formulation": "full"}],
+             "steps": [{"duration": 1.0, "max_cycles": 900, "subcycling": {"levels": 3}}],
+             "output": {"history_points": 2}}
+
+
+class MajorFlicker(Flicker):
+    """The flicker, also noting how many minor steps (force calls) preceded each of its reads (one per major cycle)."""
+
+    def __init__(self, short: float):
+        super().__init__(short)
+        self.read_at = []
+
+    def stable_dt(self):
+        self.read_at.append(len(self.times))
+        return super().stable_dt()
+
+
+def minor_steps(growth: float, monkeypatch) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """As ``steps_taken`` for the subcycling engine: (minor steps (n,) [s], the minor step index at which each
+    major cycle starts, the stiff element's step x dt_safety, the flicker's short bound x dt_safety)."""
+    monkeypatch.setattr(solver, "STEP_GROWTH", growth)
+    problem = compile_deck(Deck.model_validate(SUBCYCLED))
+    own = min(g.stable_dt() for g in problem.groups)
+    flicker = MajorFlicker(0.4 * own)
+    problem.effects.append(flicker)
+    res = solver.run(problem, solver.Sink())
+    assert res.cycles > 0, res.message
+    safety = problem.steps[0].dt_safety
+    # the first force call is the initial one at t = 0, so minor step i ends at force call i + 1
+    return np.diff(flicker.times), np.array(flicker.read_at) - 1, safety * own, safety * flicker.short
+
+
+def test_the_subcycling_engine_limits_growth_per_major_cycle(monkeypatch):
+    """Requirement: the subcycling engine follows a fall of the smallest step at once and lets its minor step grow
+    by at most STEP_GROWTH from one major cycle to the next (relative 1e-12), so a flickering bound keeps it short
+    (every minor step while the bound flickers within STEP_GROWTH of the short one) and it regrows to the stiff
+    element's own step afterwards. The major cycles really hold several minor steps (the soft elements run at
+    2 or 4 times the minor step) and the step changes only where one starts, so the limit is per major cycle, not
+    compounded over its minor steps. Without the limit the minor step alternates between the two bounds."""
+    steps, starts, own, short = minor_steps(solver.STEP_GROWTH, monkeypatch)
+    assert len(steps) > 1.5 * len(starts)
+    changes = np.flatnonzero(np.abs(np.diff(steps)) > 1e-12 * own) + 1
+    assert len(changes) and set(changes) <= set(starts)
+    ratio = steps[1:] / steps[:-1]
+    assert ratio.max() <= solver.STEP_GROWTH * (1 + 1e-12)
+    during = steps[starts[60]:starts[145]]  # reads 60-144: inside the flicker (reads 50-149)
+    assert during.max() <= short * solver.STEP_GROWTH * (1 + 1e-12) and during.min() == pytest.approx(short, rel=1e-12)
+    assert steps[-2:] == pytest.approx(own, rel=1e-12) and steps.max() <= own * (1 + 1e-12)
+    free, starts, own, short = minor_steps(math.inf, monkeypatch)
+    assert free[starts[60]:starts[145]].max() == pytest.approx(own, rel=1e-12)
+    assert free[starts[60]:starts[145]].min() == pytest.approx(short, rel=1e-12)

@@ -26,6 +26,9 @@ dynamics equations", Comput. Mech. 18, 1996):
   the rate of its fastest element. Every group update in between measures the ratio of the step its slowest node
   uses to its own current step (``step_ratio_max``, must stay below 1) and counts the updates where it exceeded
   dt_safety;
+* the minor step h follows a fall of the smallest element step at once and grows by at most
+  ``engine.solver.STEP_GROWTH`` from one major cycle to the next (as the uniform engine's step per cycle: a bound
+  that flickers must not alternate the run between a short and a long step);
 * rigid tools advance and contact pairs are evaluated at every minor step (a node is seen by the tool whatever its
   level), and each contact node's spring step sqrt(m/k) (``Effect.node_dt``) caps its level;
 * section add-ons with a stiffness of their own (fibre bending: hinges joining neighbouring elements) act on the
@@ -358,8 +361,8 @@ def kinetic(m, v, v_old, first):
 
 def run(problem, sink, should_stop, resume, sub):
     """``engine.solver.run`` for a problem with subcycling (``sub``: the ``effects.subcycling`` effect)."""
-    from fdeck.engine.solver import (Result, RunStopped, _Timer, guard_energy, history_columns, ledger, past,
-                                     step_setter)
+    from fdeck.engine.solver import (STEP_GROWTH, Result, RunStopped, _Timer, guard_energy, history_columns, ledger,
+                                     past, step_setter)
 
     res = Result(columns=history_columns(problem))
     groups, effects = problem.groups, problem.effects
@@ -424,6 +427,7 @@ def run(problem, sink, should_stop, resume, sub):
             step_cycles = 0
             collapse = getattr(problem.deck.steps[k], "min_dt_ratio", 0.0)
             dt_start = None
+            h_last = math.inf  # the last major cycle's stable minor step: growth is limited from it
             while t < t_step_end * (1 - 1e-12):
                 stop = should_stop()
                 if stop:
@@ -439,7 +443,9 @@ def run(problem, sink, should_stop, resume, sub):
                 t0 = time.perf_counter()
                 # synchronised time: every group is current; the step and the levels of the next major cycle
                 dt_min = min([g.stable_dt() for g in groups] + [e.stable_dt() for e in effects])
-                h = plan.dt_safety * dt_min
+                # a fall is followed at once, growth by at most STEP_GROWTH per major cycle (engine.solver; per
+                # major cycle, not per minor step, so that 2^L minor steps cannot compound it into a jump)
+                h = min(plan.dt_safety * dt_min, STEP_GROWTH * h_last)
                 dt_start = h if dt_start is None else dt_start
                 if h < collapse * dt_start:
                     raise RunStopped(f"stable time step collapsed to {h:.3g} s, below {collapse:g} x the step's first "
@@ -456,7 +462,7 @@ def run(problem, sink, should_stop, resume, sub):
                 remaining = t_step_end - t
                 while cap > 0 and (1 << cap) * h > remaining:  # the step's end is a synchronised time
                     cap -= 1
-                h_stable = h  # the step range reported is the stable step's, not the cut to the step's end
+                h_stable = h_last = h  # the step range reported is the stable step's, not the cut to the step's end
                 h = min(h, remaining / (1 << cap))
                 if not h > 0.0 or not math.isfinite(h):
                     raise RunStopped(f"stable time step is {h:.3g} s", t)
