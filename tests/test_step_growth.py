@@ -89,11 +89,17 @@ SUBCYCLED = {"mesh": {"block": {"size": [3.0, 1.0, 1.0], "divisions": [3, 1, 1]}
 
 
 class MajorFlicker(Flicker):
-    """The flicker, also noting how many minor steps (force calls) preceded each of its reads (one per major cycle)."""
+    """The flicker, also noting how many minor steps (force calls) preceded each of its reads (one per major cycle),
+    and, as a tool would, the (dt, dt_avg) the engine advances it with at every minor step."""
+
+    moves = True
 
     def __init__(self, short: float):
         super().__init__(short)
-        self.read_at = []
+        self.read_at, self.advanced = [], []
+
+    def advance(self, t_next, dt, dt_avg):
+        self.advanced.append((dt, dt_avg))
 
     def stable_dt(self):
         self.read_at.append(len(self.times))
@@ -112,7 +118,12 @@ def minor_steps(growth: float, monkeypatch) -> tuple[np.ndarray, np.ndarray, flo
     assert res.cycles > 0, res.message
     safety = problem.steps[0].dt_safety
     # the first force call is the initial one at t = 0, so minor step i ends at force call i + 1
-    return np.diff(flicker.times), np.array(flicker.read_at) - 1, safety * own, safety * flicker.short
+    steps = np.diff(flicker.times)
+    dt, dt_avg = np.array(flicker.advanced).T
+    # a force-driven tool's velocity update needs the central-difference mean of the last and the next minor step
+    assert dt == pytest.approx(steps, rel=1e-9) and dt_avg[0] == dt[0]  # steps: differences of times (round-off)
+    assert dt_avg[1:] == pytest.approx(0.5 * (dt[:-1] + dt[1:]), rel=1e-12)
+    return steps, np.array(flicker.read_at) - 1, safety * own, safety * flicker.short
 
 
 def test_the_subcycling_engine_limits_growth_per_major_cycle(monkeypatch):
@@ -121,7 +132,8 @@ def test_the_subcycling_engine_limits_growth_per_major_cycle(monkeypatch):
     (every minor step while the bound flickers within STEP_GROWTH of the short one) and it regrows to the stiff
     element's own step afterwards. The major cycles really hold several minor steps (the soft elements run at
     2 or 4 times the minor step) and the step changes only where one starts, so the limit is per major cycle, not
-    compounded over its minor steps. Without the limit the minor step alternates between the two bounds."""
+    compounded over its minor steps; tools are advanced with the mean of the last and the next minor step (1e-12,
+    checked in ``minor_steps``). Without the limit the minor step alternates between the two bounds."""
     steps, starts, own, short = minor_steps(solver.STEP_GROWTH, monkeypatch)
     assert len(steps) > 1.5 * len(starts)
     changes = np.flatnonzero(np.abs(np.diff(steps)) > 1e-12 * own) + 1

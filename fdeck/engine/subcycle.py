@@ -427,7 +427,7 @@ def run(problem, sink, should_stop, resume, sub):
             step_cycles = 0
             collapse = getattr(problem.deck.steps[k], "min_dt_ratio", 0.0)
             dt_start = None
-            h_last = math.inf  # the last major cycle's stable minor step: growth is limited from it
+            h_grow = math.inf  # the last major cycle's stable minor step: growth is limited from it
             while t < t_step_end * (1 - 1e-12):
                 stop = should_stop()
                 if stop:
@@ -445,7 +445,7 @@ def run(problem, sink, should_stop, resume, sub):
                 dt_min = min([g.stable_dt() for g in groups] + [e.stable_dt() for e in effects])
                 # a fall is followed at once, growth by at most STEP_GROWTH per major cycle (engine.solver; per
                 # major cycle, not per minor step, so that 2^L minor steps cannot compound it into a jump)
-                h = min(plan.dt_safety * dt_min, STEP_GROWTH * h_last)
+                h = min(plan.dt_safety * dt_min, STEP_GROWTH * h_grow)
                 dt_start = h if dt_start is None else dt_start
                 if h < collapse * dt_start:
                     raise RunStopped(f"stable time step collapsed to {h:.3g} s, below {collapse:g} x the step's first "
@@ -462,7 +462,7 @@ def run(problem, sink, should_stop, resume, sub):
                 remaining = t_step_end - t
                 while cap > 0 and (1 << cap) * h > remaining:  # the step's end is a synchronised time
                     cap -= 1
-                h_stable = h_last = h  # the step range reported is the stable step's, not the cut to the step's end
+                h_stable = h_grow = h  # the step range reported is the stable step's, not the cut to the step's end
                 h = min(h, remaining / (1 << cap))
                 if not h > 0.0 or not math.isfinite(h):
                     raise RunStopped(f"stable time step is {h:.3g} s", t)
