@@ -61,8 +61,8 @@ def test_inner_edges_run_along_the_fibres_and_halves_close_the_sides():
 
 def test_patch_test_through_the_half_diamonds():
     """Requirement: a homogeneous deformation x = A X gives F = A at every integration point of every element, the
-    collapsed halves included (1e-12), and no force at the nodes inside the block (1e-10 of the largest force: round-off of
-    sums of ~64 terms), for full, fbar and reduced integration."""
+    collapsed halves included (1e-12), and no force at the nodes inside the block (1e-10 of the largest force:
+    round-off of sums of ~64 terms), for full, fbar and reduced integration."""
     m = diagonal_block([0, 0, 0], [8.0, 8.0, 2.0], [4, 4, 2])
     A = np.array([[1.02, 0.01, -0.005], [0.004, 0.99, 0.008], [0.0, 0.006, 1.015]])
     inside = np.nonzero(np.all((m.X > 1e-9) & (m.X < np.array([8.0, 8.0, 2.0]) - 1e-9), axis=1))[0]
@@ -79,9 +79,9 @@ def test_odd_divisions_are_refused_at_the_block(tmp_path):
     line with exit 2 by `fdeck validate`, and by the generator itself naming the key; never rounded silently."""
     deck = tmp_path / "odd.yaml"
     text = (DECKS / "forming" / "double_dome_45_coarse.yaml").read_text()
-    old = "divisions: [12, 12, 1]}"
+    old = "divisions: [16, 16, 1], lattice: diagonal}"
     assert old in text
-    deck.write_text(text.replace(old, "divisions: [13, 12, 1], lattice: diagonal}"))
+    deck.write_text(text.replace(old, "divisions: [17, 16, 1], lattice: diagonal}"))
     r = subprocess.run([sys.executable, "-m", "fdeck.cli", "validate", str(deck)], capture_output=True, text=True,
                        cwd=ROOT, timeout=300)
     assert r.returncode == 2 and "Traceback" not in r.stderr
@@ -106,8 +106,9 @@ def test_a_trellising_field_is_followed_by_the_fibre_aligned_mesh_only():
     curves: a Chebyshev net, the kinematics of a fabric shearing with inextensible fibres, shear varying with b)
     stretches no fibre. On the diamond lattice the elements interpolate it with fibre strain at most the chord's
     shortfall kappa^2 l^2 / 24 (l = 4.24 mm diamond edge, kappa the curve's curvature; the collapsed halves are
-    linear triangles with both inner edges chords too) and 10 % for the higher terms; on a grid of the same element size along x and y the fibres are stretched at first order
-    (measured 117x more here), which a fibre 10^4 times stiffer than the shear turns into the locking."""
+    linear triangles with both inner edges chords too) and 10 % for the higher terms; on a grid of the same element
+    size along x and y the fibres are stretched at first order (measured 117x more here), which a fibre 10^4 times
+    stiffer than the shear turns into the locking."""
     kappa = 0.01  # 1/mm: the fibre direction of beta turns 0.01 rad per mm, 0.6 rad over the 60 mm block
 
     def field(X):
@@ -126,3 +127,93 @@ def test_a_trellising_field_is_followed_by_the_fibre_aligned_mesh_only():
     crossed = _fibre_strain(grid.X, grid.cells["hexahedron"], field)
     assert aligned <= 1.1 * kappa**2 * l**2 / 24
     assert crossed > 50 * aligned
+
+
+def test_fibre_bending_finds_its_neighbours_on_the_lattice():
+    """Requirement: `fibre_bending` (local fibre curvature from neighbouring elements) works on the lattice it is
+    needed for: with fibres at +-45 deg every element's neighbour along a family is the element centred one
+    lattice step d (1, 1) or d (-1, 1) away, exactly the pairs of diamond centres (halves included) that the
+    combinatorics of the lattice give; each half has a neighbour on one side per family and a free edge at the
+    block's side (its collapsed face has no normal: no NaN, no refusal); per layer, so nz = 2 doubles the pairs."""
+    from fdeck.physics.effects.fibre_bending import fibre_neighbours
+
+    nx, ny, d = 8, 6, 3.0
+    m = diagonal_block([0, 0, 0], [nx * d, ny * d, 2.0], [nx, ny, 2])
+    X, conn = m.X, m.cells["hexahedron"]
+    f1, f2 = np.array([1.0, 1.0, 0.0]) / math.sqrt(2), np.array([-1.0, 1.0, 0.0]) / math.sqrt(2)
+    frame = np.broadcast_to(np.stack([f1, f2, [0.0, 0.0, 1.0]]), (len(conn), 3, 3)).copy()
+    centre = X[conn].mean(axis=1)
+    is_half = np.array([len(set(r)) < 8 for r in conn])
+    centres = {(i, j) for i in range(nx + 1) for j in range(ny + 1) if (i + j) % 2}
+    for family, step in ((0, (1, 1)), (1, (-1, 1))):
+        nb = fibre_neighbours(X, conn, frame, family)
+        expected = sum((i + step[0], j + step[1]) in centres for i, j in centres)
+        assert (nb[:, 1] >= 0).sum() == 2 * expected  # two layers
+        has = nb[:, 1] >= 0
+        offset = centre[nb[has, 1]] - centre[has]
+        # a half's centroid is not its diamond's centre: check the lattice step on diamond pairs only
+        both = ~is_half[has] & ~is_half[nb[has, 1]]
+        assert np.abs(offset[both] - d * np.array([*step, 0.0])).max() < 1e-12
+        assert np.all((nb[is_half] >= 0).sum(axis=1) == 1)
+
+
+@pytest.mark.parametrize("face", ["zmin", "zmax"])
+def test_contact_areas_on_the_lattice_are_the_faces_shares(face):
+    """Requirement: the tributary areas (normal to the face) contact gives the nodes of a lattice face are a quarter
+    of each diamond (2 d^2) and a third of each half (a triangle, d^2) at each of their corners, whichever corner
+    the halves' collapse falls on and on either face (1e-12 relative: sums of exact products); they add up to the
+    block's face (nx d x ny d). Before collapsed faces were turned, 19-21 of the 32 nodes were off by up to 25 %."""
+    from fdeck.compile.problem import compile_deck
+    from fdeck.deck.model import Deck
+
+    nx, ny, d = 8, 6, 2.5
+    z = 0.0 if face == "zmin" else 1.0
+    deck = {"mesh": {"block": {"size": [nx * d, ny * d, 1.0], "divisions": [nx, ny, 1], "lattice": "diagonal"}},
+            "materials": {"m": {"type": "linear_elastic", "density": 1e-6, "youngs_modulus": 1000.0,
+                                "poisson_ratio": 0.3}},
+            "sections": [{"material": "m", "formulation": "full"}],
+            "tools": {"t": {"surface": {"shape": "plane", "point": [0, 0, z + (-1 if z == 0 else 1)],
+                                        "normal": [0, 0, 1 if z == 0 else -1]}}},
+            "contact": [{"tool": "t", "nodes": face, "normal": {"law": "linear", "stiffness": 10.0}}],
+            "steps": [{"duration": 1e-3}]}
+    problem = compile_deck(Deck.model_validate(deck))
+    contact = next(e for e in problem.effects if e.name == "contact:t")
+    expected = {}
+    for i in range(nx + 1):
+        for j in range(ny + 1):
+            if (i + j) % 2 == 0:
+                continue
+            corners = [(i + a, j + b) for a, b in ((1, 0), (0, 1), (-1, 0), (0, -1))
+                       if 0 <= i + a <= nx and 0 <= j + b <= ny]
+            share = 2 * d * d / 4 if len(corners) == 4 else d * d / 3
+            for c in corners:
+                expected[c] = expected.get(c, 0.0) + share
+    # the area vector's z component: nodes on the block's sides also carry their side faces' x / y components
+    got = {(round(x / d), round(y / d)): abs(a) for (x, y, _), a in zip(problem.X[contact.nodes], contact.vec[:, 2])}
+    assert got.keys() == expected.keys()
+    assert np.array([got[k] for k in expected]) == pytest.approx(np.array(list(expected.values())), rel=1e-12)
+    assert sum(got.values()) == pytest.approx(nx * d * ny * d, rel=1e-12)
+
+
+def test_collapsed_prisms_lump_their_mass_by_corner_and_other_degenerate_hexahedra_are_refused():
+    """Requirement: a half (a prism) of the lattice gives each of its six distinct nodes a sixth of its mass for
+    every formulation (the one-point `reduced` included: V0 / 8 per slot would give the repeated node a quarter;
+    1e-12 relative), and the relaxed corner check admits collapsed hexahedra only: the same triangle with its
+    fourth corner a mid-side node (a straight angle, no node repeated) stays refused (detJ_min <= 0)."""
+    m = diagonal_block([0, 0, 0], [4.0, 4.0, 1.0], [2, 2, 1])  # four halves only
+    conn = m.cells["hexahedron"]
+    for form in ("full", "fbar", "reduced"):
+        g = make_group(form, "neo_hookean", m.X, conn)
+        per_node = np.zeros(len(m.X))
+        np.add.at(per_node, conn, g.mass(np.ones(len(conn))))
+        V = 4.0 * 4.0 * 1.0
+        # every node is a corner of one or two halves, each giving it V_half / 6
+        counts = np.zeros(len(m.X))
+        for row in conn:
+            counts[np.unique(row)] += 1
+        assert per_node == pytest.approx(counts * (V / 4) / 6, rel=1e-12), form
+    X = np.array([[0, -1, 0], [1, 0, 0], [0, 1, 0], [0, 0, 0], [0, -1, 1], [1, 0, 1], [0, 1, 1], [0, 0, 1]], float)
+    straight = np.arange(8)[None, :]
+    assert hex8.prepare(X, straight)["detJ_min"][0] <= 0
+    collapsed = np.array([[0, 1, 2, 2, 4, 5, 6, 6]])
+    assert hex8.prepare(X, collapsed)["detJ_min"][0] > 0

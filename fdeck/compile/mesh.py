@@ -58,14 +58,17 @@ def diagonal_block(origin, size, divisions=None, element_size=None) -> MeshArray
 
     divisions (nx, ny, nz): nx, ny count half-diagonals d = size / n along x and y (even, so that the block's
     corners are lattice nodes), nz layers; element_size h: the diamonds' edge, d = h / sqrt(2), nx, ny rounded up
-    to even. Lattice nodes (i, j) with i + j even; each diamond is centred at a point with i + j odd. A diamond cut
-    by a side of the block is one element too: the half-diamond, a triangle, as a hexahedron with one edge collapsed
-    (its corner beyond the side takes the next corner's node). A collapsed hexahedron interpolates linearly in the
-    triangle (a prism), so its two edges along the fibres stay fibre-aligned (a mid-side node on the block's side
-    instead would stretch the fibres at first order; tests/test_diagonal_lattice.py); its Jacobian is positive at
-    every integration point and zero along the collapsed edge. A 300 x 300 mm quarter with d = 3 mm (4.24 mm edges)
-    has 4 900 diamonds and 200 halves per layer, the 5 100 of the published +-45 meshes (MODELS.md 6.4). Node sets
-    xmin..zmax (faces) and `all`; element set `all`."""
+    to even (so 4.24 mm on 300 mm gives 102, the exact 3 sqrt(2) gives 100). The edges are at +-45 deg only where
+    size[0] / nx = size[1] / ny; otherwise the diamonds are rhombi whose edges follow +-45 deg fibres only
+    approximately (give divisions for a rectangular block). Lattice nodes (i, j) with i + j even; each diamond is
+    centred at a point with i + j odd. A diamond cut by a side of the block is one element too: the half-diamond, a
+    triangle, as a hexahedron with one edge collapsed (its corner beyond the side takes the next corner's node). A
+    collapsed hexahedron interpolates linearly in the triangle (a prism), so its two edges along the fibres stay
+    fibre-aligned (a mid-side node on the block's side instead would stretch the fibres at first order;
+    tests/test_diagonal_lattice.py); its Jacobian is positive at every integration point and zero along the
+    collapsed edge. A 300 x 300 mm quarter with d = 3 mm (4.24 mm edges) has 4 900 diamonds and 200 halves per
+    layer, the 5 100 of the published +-45 meshes (MODELS.md 6.4). Node sets xmin..zmax (faces) and `all`; element
+    set `all`."""
     if divisions is None:
         divisions = [2 * max(1, math.ceil(s / (2 * element_size / math.sqrt(2)) - 1e-9)) for s in size[:2]]
         divisions.append(max(1, math.ceil(size[2] / element_size - 1e-9)))

@@ -68,11 +68,13 @@ class Block(_Structured):
     lattice: Literal["grid", "diagonal"] = Field(
         "grid", description="`grid`: edges along x, y, z. `diagonal`: edges in x-y at +-45 deg (diamonds, the halves "
         "cut by the sides one element each), for fibres at +-45 deg; divisions x, y then count half-diagonals "
-        "(even), element_size is the diamonds' edge.")
+        "(even), element_size is the diamonds' edge; the edges are at +-45 deg where size x / divisions x = "
+        "size y / divisions y.")
 
     @model_validator(mode="after")
     def _even_diagonal(self):
-        if self.lattice == "diagonal" and self.divisions is not None and (self.divisions[0] % 2 or self.divisions[1] % 2):
+        odd = self.divisions is not None and (self.divisions[0] % 2 or self.divisions[1] % 2)
+        if self.lattice == "diagonal" and odd:
             raise ValueError(f"a diagonal lattice needs even divisions along x and y, got {list(self.divisions[:2])}")
         return self
 

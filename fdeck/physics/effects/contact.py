@@ -397,6 +397,11 @@ def tributary(ctx) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     n = len(ctx.X)
     area, vec, offset, two_sided = np.zeros(n), np.zeros((n, 3)), np.zeros(n), np.zeros(n, bool)
     faces = ctx.surface["faces"]
+    # a collapsed face (a triangle: two consecutive corners on one node, as the halves of a diagonal lattice) is
+    # turned so that the repeated node sits at corners 2 and 3 (a cyclic turn keeps its area vector)
+    repeated = faces == np.roll(faces, -1, axis=1)
+    turn = (np.argmax(repeated, axis=1) - 2) % 4 * repeated.any(axis=1)
+    faces = np.take_along_axis(faces, (np.arange(4)[None, :] + turn[:, None]) % 4, axis=1)
     xf = ctx.X[faces]
     av = 0.5 * np.cross(xf[:, 2] - xf[:, 0], xf[:, 3] - xf[:, 1])
     a = np.linalg.norm(av, axis=1)

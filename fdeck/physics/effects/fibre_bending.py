@@ -223,26 +223,31 @@ def outward_face_normals(X: np.ndarray, conn: np.ndarray) -> np.ndarray:
     n = np.cross(f[:, :, 2] - f[:, :, 0], f[:, :, 3] - f[:, :, 1])
     out = f.mean(axis=2) - X[conn].mean(axis=1)[:, None, :]
     n *= np.sign(np.einsum("efi,efi->ef", n, out))[..., None]
-    return n / np.linalg.norm(n, axis=2, keepdims=True)
+    size = np.linalg.norm(n, axis=2, keepdims=True)
+    return n / np.where(size > 0, size, 1.0)  # a collapsed face (zero area) gets a zero normal
 
 
 def fibre_neighbours(X: np.ndarray, conn: np.ndarray, frame: np.ndarray, family: int) -> np.ndarray:
     """(n_el, 2) neighbour across the face closest to -f_i (column 0) and +f_i (column 1), -1 at a free edge.
 
     Raises MeshNotAligned when a face normal is farther than ALIGN_DEG from +-f_i, or when two neighbours disagree
-    (e's + neighbour does not have e as its - neighbour)."""
+    (e's + neighbour does not have e as its - neighbour). An element with a collapsed face (the half-diamonds of
+    ``mesh.block.lattice: diagonal``, a prism) has one face along each fibre family; its other side is the block's
+    side, which it takes as a free edge."""
     nf = outward_face_normals(X, conn)
     c = np.einsum("efi,ei->ef", nf, frame[:, family])
     plus, minus = np.argmax(c, axis=1), np.argmin(c, axis=1)
     rows = np.arange(len(conn))
     lim = math.cos(math.radians(ALIGN_DEG))
-    bad = (c[rows, plus] < lim) | (-c[rows, minus] < lim)
+    prism = (np.abs(nf).sum(axis=2) == 0).any(axis=1)
+    no_plus, no_minus = c[rows, plus] < lim, -c[rows, minus] < lim
+    bad = (no_plus | no_minus) & ~(prism & (no_plus != no_minus))
     name = FAMILIES[family]
     if bad.any():
         raise MeshNotAligned(f"have no pair of faces normal to {name} within {ALIGN_DEG:g} deg: fibre_bending "
                              "needs a mesh with element edges along the fibres", np.nonzero(bad)[0])
     twin = face_twins(conn)
-    nb = np.stack([twin[rows, minus], twin[rows, plus]], axis=1)
+    nb = np.stack([np.where(no_minus, -1, twin[rows, minus]), np.where(no_plus, -1, twin[rows, plus])], axis=1)
     nb = np.where(nb >= 0, nb // 6, -1)
     right = nb[:, 1]
     has = right >= 0

@@ -61,8 +61,8 @@ def prepare(X: np.ndarray, conn: np.ndarray) -> dict:
     X (n_node, 3) reference coordinates; conn (n_el, 8). Returns dN (n_el, 8, 8, 3) gradients dN_a/dX at the
     2x2x2 points, w (n_el, 8) point volumes [mm^3], V0 (n_el,), b (n_el, 8, 3) uniform gradient, gamma
     (n_el, 4, 8) hourglass vectors, L0 (n_el,) characteristic length V0 / largest face area [mm], and
-    detJ_min (n_el,) the smallest Jacobian at the 2x2x2 points and the nodes (<= 0 means inverted/degenerate; a
-    node's Jacobian that is zero to round-off is left out).
+    detJ_min (n_el,) the smallest Jacobian at the 2x2x2 points and the nodes (<= 0 means inverted/degenerate; in
+    an element with a repeated node, a node's Jacobian that is zero to round-off is left out).
     """
     xe = X[conn]  # (n_el, 8, 3)
     dxi = shape_gradients_local(GAUSS_2)  # (8, 8, 3)
@@ -70,9 +70,12 @@ def prepare(X: np.ndarray, conn: np.ndarray) -> dict:
     detJ = np.linalg.det(J)
     dxi_nodes = shape_gradients_local(NODE_SIGNS)
     detJ_nodes = np.linalg.det(np.einsum("eai,qaj->eqij", xe, dxi_nodes))
-    # a node Jacobian zero to round-off is a straight angle (the half-diamonds of compile.mesh.diagonal_block) or a
-    # collapsed edge, which 2x2x2 and one-point integration never sample: the integration points decide there
-    flat = np.abs(detJ_nodes) <= 1e-9 * np.abs(detJ).mean(axis=1, keepdims=True)
+    # at the corners of a collapsed edge (a node repeated: the prisms of compile.mesh.diagonal_block's sides) the
+    # Jacobian is zero, where 2x2x2 and one-point integration never sample: the integration points decide there;
+    # any other element with a zero corner Jacobian (a straight angle, a pyramid) is still refused
+    c = np.sort(conn, axis=1)
+    collapsed = (c[:, 1:] == c[:, :-1]).any(axis=1)
+    flat = collapsed[:, None] & (np.abs(detJ_nodes) <= 1e-9 * np.abs(detJ).mean(axis=1, keepdims=True))
     detJ_min = np.minimum(detJ.min(axis=1), np.where(flat, np.inf, detJ_nodes).min(axis=1))
     safe = np.where(np.abs(detJ) > 0, detJ, 1.0)
     Jinv = np.linalg.inv(np.where(np.abs(detJ)[..., None, None] > 0, J, np.eye(3)))
@@ -439,6 +442,11 @@ class Hex8Group:
         n_el = len(conn)
         reduced = formulation == "reduced"
         n_qp = 1 if reduced else 8
+        # collapsed hexahedra (a node repeated: the prisms of a diagonal lattice's sides) lump their mass by the
+        # 2x2x2 row sums whatever the integration: V0 / 8 per corner would give the repeated node twice its share
+        self.collapsed = np.nonzero((np.sort(self.conn, axis=1)[:, 1:] == np.sort(self.conn, axis=1)[:, :-1])
+                                    .any(axis=1))[0]
+        self.w_collapsed = geo["w"][self.collapsed]
         if reduced:  # one point with the uniform gradient and the whole volume
             self.dN, self.w = self.b[:, None], self.V0[:, None].copy()
         self.params, self.frame = params, np.ascontiguousarray(frame)
@@ -533,12 +541,14 @@ class Hex8Group:
 
     def mass(self, rho: np.ndarray) -> np.ndarray:
         """Lumped element masses per node (n_el, 8) [t] with densities rho (n_el,) [t/mm^3]: row sums of the
-        consistent mass, int rho N_a dV (V0 / 8 per node for the one-point element)."""
+        consistent mass, int rho N_a dV (V0 / 8 per node for the one-point element, except collapsed ones)."""
         rho = np.asarray(rho, float)
+        N = np.prod(1 + NODE_SIGNS[None, :, :] * GAUSS_2[:, None, :], axis=2) / 8.0  # (8 qp, 8 nodes)
         if self.w.shape[1] == 8:
-            N = np.prod(1 + NODE_SIGNS[None, :, :] * GAUSS_2[:, None, :], axis=2) / 8.0  # (8 qp, 8 nodes)
             return rho[:, None] * self.w @ N
-        return rho[:, None] * np.repeat(self.V0[:, None] / 8.0, 8, axis=1)
+        m = rho[:, None] * np.repeat(self.V0[:, None] / 8.0, 8, axis=1)
+        m[self.collapsed] = rho[self.collapsed, None] * self.w_collapsed @ N
+        return m
 
     # -- output ------------------------------------------------------------------------------------
     def cell_fields(self, idx=None) -> dict[str, np.ndarray]:
