@@ -42,17 +42,24 @@ class Flicker(Effect):
         return self.short if 50 <= self.calls < 150 and self.calls % 2 == 0 else math.inf
 
 
-def steps_taken(growth: float, monkeypatch) -> tuple[np.ndarray, float, float]:
-    """(steps (n,) [s], the element's own step x dt_safety, the flicker's short bound x dt_safety)."""
+def run_flickered(deck: dict, kind, growth: float, monkeypatch):
+    """Run ``deck`` with STEP_GROWTH = growth and a flicker of class ``kind`` at 0.4 x the smallest element step:
+    (result, flicker, the smallest element step x dt_safety, the flicker's short bound x dt_safety)."""
     monkeypatch.setattr(solver, "STEP_GROWTH", growth)
-    problem = compile_deck(Deck.model_validate(DECK))
+    problem = compile_deck(Deck.model_validate(deck))
     own = min(g.stable_dt() for g in problem.groups)
-    flicker = Flicker(0.4 * own)
+    flicker = kind(0.4 * own)
     problem.effects.append(flicker)
     res = solver.run(problem, solver.Sink())
-    assert res.cycles == 300, res.message
     safety = problem.steps[0].dt_safety
-    return np.diff(flicker.times), safety * own, safety * flicker.short
+    return res, flicker, safety * own, safety * flicker.short
+
+
+def steps_taken(growth: float, monkeypatch) -> tuple[np.ndarray, float, float]:
+    """(steps (n,) [s], the element's own step x dt_safety, the flicker's short bound x dt_safety)."""
+    res, flicker, own, short = run_flickered(DECK, Flicker, growth, monkeypatch)
+    assert res.cycles == 300, res.message
+    return np.diff(flicker.times), own, short
 
 
 def test_a_flickering_bound_keeps_the_step_short_and_it_regrows_by_two_percent_per_cycle(monkeypatch):
@@ -109,21 +116,15 @@ class MajorFlicker(Flicker):
 def minor_steps(growth: float, monkeypatch) -> tuple[np.ndarray, np.ndarray, float, float]:
     """As ``steps_taken`` for the subcycling engine: (minor steps (n,) [s], the minor step index at which each
     major cycle starts, the stiff element's step x dt_safety, the flicker's short bound x dt_safety)."""
-    monkeypatch.setattr(solver, "STEP_GROWTH", growth)
-    problem = compile_deck(Deck.model_validate(SUBCYCLED))
-    own = min(g.stable_dt() for g in problem.groups)
-    flicker = MajorFlicker(0.4 * own)
-    problem.effects.append(flicker)
-    res = solver.run(problem, solver.Sink())
+    res, flicker, own, short = run_flickered(SUBCYCLED, MajorFlicker, growth, monkeypatch)
     assert res.cycles > 0, res.message
-    safety = problem.steps[0].dt_safety
     # the first force call is the initial one at t = 0, so minor step i ends at force call i + 1
     steps = np.diff(flicker.times)
     dt, dt_avg = np.array(flicker.advanced).T
     # a force-driven tool's velocity update needs the central-difference mean of the last and the next minor step
     assert dt == pytest.approx(steps, rel=1e-9) and dt_avg[0] == dt[0]  # steps: differences of times (round-off)
     assert dt_avg[1:] == pytest.approx(0.5 * (dt[:-1] + dt[1:]), rel=1e-12)
-    return steps, np.array(flicker.read_at) - 1, safety * own, safety * flicker.short
+    return steps, np.array(flicker.read_at) - 1, own, short
 
 
 def test_the_subcycling_engine_limits_growth_per_major_cycle(monkeypatch):
