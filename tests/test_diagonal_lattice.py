@@ -217,3 +217,25 @@ def test_collapsed_prisms_lump_their_mass_by_corner_and_other_degenerate_hexahed
     assert hex8.prepare(X, straight)["detJ_min"][0] <= 0
     collapsed = np.array([[0, 1, 2, 2, 4, 5, 6, 6]])
     assert hex8.prepare(X, collapsed)["detJ_min"][0] > 0
+    cube = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0.5, 0.5, 1]], float)
+    pyramid = np.array([[0, 1, 2, 3, 4, 4, 4, 4]])  # a repeated node, but not a prism
+    assert hex8.prepare(cube, pyramid)["detJ_min"][0] <= 0
+
+
+def test_unequal_spacings_and_centroids_of_the_halves():
+    """Requirement: unequal spacings along x and y (edges not at +-45 deg) are refused at the block naming both
+    spacings and divisions that fit; a half's centroid (element sets by box, the fibre table) is the mean of its
+    three distinct corners (1e-12), not a mean that counts the repeated node twice."""
+    from fdeck.compile.mesh import centroids
+
+    with pytest.raises(CompileError) as info:
+        diagonal_block([0, 0, 0], [60.0, 40.0, 1.0], [20, 20, 1])
+    (path, message), = info.value.problems
+    assert path == ("mesh", "block") and "3 and 2 mm" in message and "[20, 14, 1]" in message
+    m = diagonal_block([0, 0, 0], [12.0, 12.0, 1.0], [4, 4, 1])
+    conn = m.cells["hexahedron"]
+    c = centroids(m.X, conn)
+    for e in np.nonzero([len(set(r)) < 8 for r in conn])[0]:
+        corners = np.unique(m.X[conn[e]], axis=0)
+        assert len(corners) == 6
+        assert c[e] == pytest.approx(corners.mean(axis=0), rel=1e-12)

@@ -57,15 +57,14 @@ def diagonal_block(origin, size, divisions=None, element_size=None) -> MeshArray
     +-45 deg: an element can then shear along its fibres without stretching them (no intra-ply shear locking).
 
     divisions (nx, ny, nz): nx, ny count half-diagonals d = size / n along x and y (even, so that the block's
-    corners are lattice nodes), nz layers; element_size h: the diamonds' edge, d = h / sqrt(2), nx, ny rounded up
-    to even (so 4.24 mm on 300 mm gives 102, the exact 3 sqrt(2) gives 100). The edges are at +-45 deg only where
-    size[0] / nx = size[1] / ny; otherwise the diamonds are rhombi whose edges follow +-45 deg fibres only
-    approximately (give divisions for a rectangular block). Lattice nodes (i, j) with i + j even; each diamond is
-    centred at a point with i + j odd. A diamond cut by a side of the block is one element too: the half-diamond, a
-    triangle, as a hexahedron with one edge collapsed (its corner beyond the side takes the next corner's node). A
-    collapsed hexahedron interpolates linearly in the triangle (a prism), so its two edges along the fibres stay
-    fibre-aligned (a mid-side node on the block's side instead would stretch the fibres at first order;
-    tests/test_diagonal_lattice.py); its Jacobian is positive at every integration point and zero along the
+    corners are lattice nodes), nz layers; element_size h: the diamonds' edge, d = h / sqrt(2), nx, ny rounded up to
+    even (so 4.24 mm on 300 mm gives 102, the exact 3 sqrt(2) gives 100). The spacings size[0] / nx and size[1] / ny
+    must be equal (else the edges are not at +-45 deg): refused otherwise. Lattice nodes (i, j) with i + j even;
+    each diamond is centred at a point with i + j odd. A diamond cut by a side of the block is one element too: the
+    half-diamond, a triangle, as a hexahedron with one edge collapsed (its corner beyond the side takes the next
+    corner's node). A collapsed hexahedron interpolates linearly in the triangle (a prism), so its two edges along
+    the fibres stay fibre-aligned (a mid-side node on the block's side instead would stretch the fibres at first
+    order; tests/test_diagonal_lattice.py); its Jacobian is positive at every integration point and zero along the
     collapsed edge. A 300 x 300 mm quarter with d = 3 mm (4.24 mm edges) has 4 900 diamonds and 200 halves per
     layer, the 5 100 of the published +-45 meshes (MODELS.md 6.4). Node sets xmin..zmax (faces) and `all`; element
     set `all`."""
@@ -76,6 +75,11 @@ def diagonal_block(origin, size, divisions=None, element_size=None) -> MeshArray
     if nx % 2 or ny % 2:
         raise CompileError([(("mesh", "block", "divisions"),
                              f"a diagonal lattice needs even divisions along x and y, got {nx} and {ny}")])
+    dx, dy = size[0] / nx, size[1] / ny
+    if abs(dx - dy) > 1e-9 * max(dx, dy):
+        raise CompileError([(("mesh", "block"), f"a diagonal lattice needs equal spacings size / divisions along x "
+                             f"and y (edges at +-45 deg), got {dx:.6g} and {dy:.6g} mm: choose divisions "
+                             f"[{nx}, {2 * round(size[1] / dx / 2)}, {nz}] or a size to match")])
     i, j = np.meshgrid(np.arange(nx + 1), np.arange(ny + 1), indexing="ij")
     used = (i + j) % 2 == 0  # lattice nodes
     plane = np.full((nx + 1, ny + 1), -1, np.int64)
@@ -174,6 +178,15 @@ def read_file(path: Path) -> MeshArrays:
     return m
 
 
+def centroids(X: np.ndarray, conn: np.ndarray) -> np.ndarray:
+    """(n_el, 3) mean of each element's distinct nodes (a collapsed hexahedron or a triangle written as a quad
+    repeats a node, which a plain mean would count twice); X (n_node, 3), conn (n_el, k)."""
+    c = np.sort(conn, axis=1)
+    distinct = np.ones(c.shape, bool)
+    distinct[:, 1:] = c[:, 1:] != c[:, :-1]
+    return (X[c] * distinct[..., None]).sum(axis=1) / distinct.sum(axis=1)[:, None]
+
+
 def add_box_sets(m: MeshArrays, node_boxes: dict, element_boxes: dict) -> None:
     """Add sets of nodes (by position) and elements (by centroid) inside boxes; empty sets are errors."""
     problems = []
@@ -187,7 +200,7 @@ def add_box_sets(m: MeshArrays, node_boxes: dict, element_boxes: dict) -> None:
         lo, hi = np.asarray(spec.box[0]) - spec.tolerance, np.asarray(spec.box[1]) + spec.tolerance
         es = {}
         for t, conn in m.cells.items():
-            c = m.X[conn].mean(axis=1)
+            c = centroids(m.X, conn)
             sel = np.nonzero(np.all((c >= lo) & (c <= hi), axis=1))[0]
             if len(sel):
                 es[t] = sel

@@ -64,12 +64,13 @@ class Block(_Structured):
     size: Vector = Field(description="Edge lengths along x, y, z [mm].")
     divisions: tuple[PositiveInt, PositiveInt, PositiveInt] | None = Field(
         None, description="Elements along x, y, z. Give this or `element_size`.")
-    element_size: float | None = Field(None, gt=0, description="Target edge length [mm]; divisions = ceil(size/h).")
+    element_size: float | None = Field(None, gt=0, description="Target edge length [mm]; divisions = ceil(size/h) "
+                                       "(diagonal lattice: see `lattice`).")
     lattice: Literal["grid", "diagonal"] = Field(
         "grid", description="`grid`: edges along x, y, z. `diagonal`: edges in x-y at +-45 deg (diamonds, the halves "
         "cut by the sides one element each), for fibres at +-45 deg; divisions x, y then count half-diagonals "
-        "(even), element_size is the diamonds' edge; the edges are at +-45 deg where size x / divisions x = "
-        "size y / divisions y.")
+        "(even) and size x / divisions x must equal size y / divisions y; element_size is then the diamonds' "
+        "edge.")
 
     @model_validator(mode="after")
     def _even_diagonal(self):

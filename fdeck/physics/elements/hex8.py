@@ -55,6 +55,17 @@ def shape_gradients_local(points: np.ndarray) -> np.ndarray:
     return out
 
 
+def prisms(conn: np.ndarray) -> np.ndarray:
+    """(n_el,) bool: hexahedra collapsed into a prism, six distinct nodes with corner k + 1 of the bottom face on
+    corner k's node and the same on the top face (k + 4, k + 5) for one k (cyclic)."""
+    bottom, top = conn[:, :4], conn[:, 4:]
+    same_b = bottom == np.roll(bottom, -1, axis=1)
+    same_t = top == np.roll(top, -1, axis=1)
+    c = np.sort(conn, axis=1)
+    distinct = 1 + (c[:, 1:] != c[:, :-1]).sum(axis=1)
+    return (same_b.sum(axis=1) == 1) & (same_b == same_t).all(axis=1) & (distinct == 6)
+
+
 def prepare(X: np.ndarray, conn: np.ndarray) -> dict:
     """Reference-state arrays of hexahedra.
 
@@ -70,12 +81,11 @@ def prepare(X: np.ndarray, conn: np.ndarray) -> dict:
     detJ = np.linalg.det(J)
     dxi_nodes = shape_gradients_local(NODE_SIGNS)
     detJ_nodes = np.linalg.det(np.einsum("eai,qaj->eqij", xe, dxi_nodes))
-    # at the corners of a collapsed edge (a node repeated: the prisms of compile.mesh.diagonal_block's sides) the
-    # Jacobian is zero, where 2x2x2 and one-point integration never sample: the integration points decide there;
-    # any other element with a zero corner Jacobian (a straight angle, a pyramid) is still refused
-    c = np.sort(conn, axis=1)
-    collapsed = (c[:, 1:] == c[:, :-1]).any(axis=1)
-    flat = collapsed[:, None] & (np.abs(detJ_nodes) <= 1e-9 * np.abs(detJ).mean(axis=1, keepdims=True))
+    # at the corners of a collapsed edge (the prisms of compile.mesh.diagonal_block's sides: one side edge of the
+    # bottom face collapsed and the same one of the top face) the Jacobian is zero, where 2x2x2 and one-point
+    # integration never sample: the integration points decide there; any other element with a zero corner
+    # Jacobian (a straight angle, a pyramid, a tetrahedron) is still refused
+    flat = prisms(conn)[:, None] & (np.abs(detJ_nodes) <= 1e-9 * np.abs(detJ).mean(axis=1, keepdims=True))
     detJ_min = np.minimum(detJ.min(axis=1), np.where(flat, np.inf, detJ_nodes).min(axis=1))
     safe = np.where(np.abs(detJ) > 0, detJ, 1.0)
     Jinv = np.linalg.inv(np.where(np.abs(detJ)[..., None, None] > 0, J, np.eye(3)))
@@ -442,11 +452,10 @@ class Hex8Group:
         n_el = len(conn)
         reduced = formulation == "reduced"
         n_qp = 1 if reduced else 8
-        # collapsed hexahedra (a node repeated: the prisms of a diagonal lattice's sides) lump their mass by the
-        # 2x2x2 row sums whatever the integration: V0 / 8 per corner would give the repeated node twice its share
-        self.collapsed = np.nonzero((np.sort(self.conn, axis=1)[:, 1:] == np.sort(self.conn, axis=1)[:, :-1])
-                                    .any(axis=1))[0]
-        self.w_collapsed = geo["w"][self.collapsed]
+        # the one-point element lumps collapsed hexahedra (the prisms of a diagonal lattice's sides) by the 2x2x2
+        # row sums, as full integration does: V0 / 8 per corner would give the repeated node twice its share
+        self.collapsed = np.nonzero(prisms(self.conn))[0]
+        self.w_collapsed = geo["w"][self.collapsed] if reduced else None
         if reduced:  # one point with the uniform gradient and the whole volume
             self.dN, self.w = self.b[:, None], self.V0[:, None].copy()
         self.params, self.frame = params, np.ascontiguousarray(frame)

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from fdeck.compile.mesh import centroids as element_centroids
 from fdeck.physics.measures.locate import locate
 
 
@@ -121,7 +122,7 @@ def fibre_table(cells: dict[str, np.ndarray], x: np.ndarray, fields: dict[str, n
     fields, see ``fdeck.run.assemble_cells``): element (1-based), current centroid (mean of the element's distinct
     nodes) [mm], current warp and weft unit vectors (the laws' point-averaged directions renormalised), shear
     angle [deg]. Elements whose law has no fibres get NaN."""
-    centroids = np.concatenate([x[conn].mean(axis=1) for conn in cells.values()])
+    centroids = np.concatenate([element_centroids(x, conn) for conn in cells.values()])
     n = len(centroids)
     out = {"element": np.arange(1, n + 1), "cx": centroids[:, 0], "cy": centroids[:, 1], "cz": centroids[:, 2]}
     for fam in ("warp", "weft"):
