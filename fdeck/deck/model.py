@@ -72,13 +72,6 @@ class Block(_Structured):
         "(even) and size x / divisions x must equal size y / divisions y; element_size is then the diamonds' "
         "edge.")
 
-    @model_validator(mode="after")
-    def _even_diagonal(self):
-        odd = self.divisions is not None and (self.divisions[0] % 2 or self.divisions[1] % 2)
-        if self.lattice == "diagonal" and odd:
-            raise ValueError(f"a diagonal lattice needs even divisions along x and y, got {list(self.divisions[:2])}")
-        return self
-
 
 class BoxSet(Card):
     """Entities inside an axis-aligned box (nodes by position, elements by centroid), bounds inclusive [mm]."""

@@ -234,12 +234,14 @@ def fibre_neighbours(X: np.ndarray, conn: np.ndarray, frame: np.ndarray, family:
     (e's + neighbour does not have e as its - neighbour). An element with a collapsed face (the half-diamonds of
     ``mesh.block.lattice: diagonal``, a prism) has one face along each fibre family; its other side is the block's
     side, which it takes as a free edge."""
+    from fdeck.physics.elements.hex8 import prisms
+
     nf = outward_face_normals(X, conn)
     c = np.einsum("efi,ei->ef", nf, frame[:, family])
     plus, minus = np.argmax(c, axis=1), np.argmin(c, axis=1)
     rows = np.arange(len(conn))
     lim = math.cos(math.radians(ALIGN_DEG))
-    prism = (np.abs(nf).sum(axis=2) == 0).any(axis=1)
+    prism = prisms(conn)
     no_plus, no_minus = c[rows, plus] < lim, -c[rows, minus] < lim
     bad = (no_plus | no_minus) & ~(prism & (no_plus != no_minus))
     name = FAMILIES[family]

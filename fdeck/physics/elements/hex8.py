@@ -71,7 +71,8 @@ def prepare(X: np.ndarray, conn: np.ndarray) -> dict:
 
     X (n_node, 3) reference coordinates; conn (n_el, 8). Returns dN (n_el, 8, 8, 3) gradients dN_a/dX at the
     2x2x2 points, w (n_el, 8) point volumes [mm^3], V0 (n_el,), b (n_el, 8, 3) uniform gradient, gamma
-    (n_el, 4, 8) hourglass vectors, L0 (n_el,) characteristic length V0 / largest face area [mm], and
+    (n_el, 4, 8) hourglass vectors, L0 (n_el,) characteristic length V0 / largest face area [mm], prism (n_el,)
+    the collapsed ones (``prisms``), and
     detJ_min (n_el,) the smallest Jacobian at the 2x2x2 points and the nodes (<= 0 means inverted/degenerate; in
     an element with a repeated node, a node's Jacobian that is zero to round-off is left out).
     """
@@ -85,7 +86,8 @@ def prepare(X: np.ndarray, conn: np.ndarray) -> dict:
     # bottom face collapsed and the same one of the top face) the Jacobian is zero, where 2x2x2 and one-point
     # integration never sample: the integration points decide there; any other element with a zero corner
     # Jacobian (a straight angle, a pyramid, a tetrahedron) is still refused
-    flat = prisms(conn)[:, None] & (np.abs(detJ_nodes) <= 1e-9 * np.abs(detJ).mean(axis=1, keepdims=True))
+    prism = prisms(conn)
+    flat = prism[:, None] & (np.abs(detJ_nodes) <= 1e-9 * np.abs(detJ).mean(axis=1, keepdims=True))
     detJ_min = np.minimum(detJ.min(axis=1), np.where(flat, np.inf, detJ_nodes).min(axis=1))
     safe = np.where(np.abs(detJ) > 0, detJ, 1.0)
     Jinv = np.linalg.inv(np.where(np.abs(detJ)[..., None, None] > 0, J, np.eye(3)))
@@ -99,7 +101,7 @@ def prepare(X: np.ndarray, conn: np.ndarray) -> dict:
     area = 0.5 * np.linalg.norm(np.cross(f[:, :, 2] - f[:, :, 0], f[:, :, 3] - f[:, :, 1]), axis=-1)
     L0 = V0 / area.max(axis=1)
     return dict(dN=np.ascontiguousarray(dN), w=np.ascontiguousarray(w), V0=V0, b=np.ascontiguousarray(b),
-                gamma=np.ascontiguousarray(gamma), L0=L0, detJ_min=detJ_min)
+                gamma=np.ascontiguousarray(gamma), L0=L0, detJ_min=detJ_min, prism=prism)
 
 
 @_inline
@@ -454,7 +456,7 @@ class Hex8Group:
         n_qp = 1 if reduced else 8
         # the one-point element lumps collapsed hexahedra (the prisms of a diagonal lattice's sides) by the 2x2x2
         # row sums, as full integration does: V0 / 8 per corner would give the repeated node twice its share
-        self.collapsed = np.nonzero(prisms(self.conn))[0]
+        self.collapsed = np.nonzero(geo["prism"])[0]
         self.w_collapsed = geo["w"][self.collapsed] if reduced else None
         if reduced:  # one point with the uniform gradient and the whole volume
             self.dN, self.w = self.b[:, None], self.V0[:, None].copy()
