@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from fdeck import registry
+from fdeck.cards.mass_scaling import CG_MAX_ITERATIONS, CG_TOLERANCE
 from fdeck.compile import amplitude
 from fdeck.compile.errors import CompileError
 from fdeck.compile.mesh import MeshArrays, add_box_sets, block, diagonal_block, plate, read_file
@@ -40,7 +41,7 @@ class StepPlan:
     # times its mass) while ``mass`` is the lumped mass of rho_base (physical, or uniformly scaled under
     # ``selective_target_dt``; m_e above is rho_base's); ``added_mass`` is (tr(M) + tr(dM)) / tr(M_physical) - 1
     selective: list[np.ndarray] | None = None
-    cg: tuple[float, int] = (1e-4, 200)  # (relative tolerance, iteration cap) of the per-cycle solve
+    cg: tuple[float, int] = (CG_TOLERANCE, CG_MAX_ITERATIONS)  # (relative tolerance, iteration cap) of the solve
 
     def translational(self, i: int) -> np.ndarray | None:
         """(n_el,) densities of group i's translational (lumped) mass under selective scaling, rho / (1 + beta);
@@ -376,7 +377,7 @@ def plan_steps(deck: Deck, groups: list, physical_mass: np.ndarray, effects=()) 
             inertia = nodal_inertia(groups, n_node, rho) if rotational else None
             added = (mass.sum() - total) / total
         start = sum(p.duration for p in plans)
-        cg = (ms.cg_tolerance, ms.cg_max_iterations) if ms is not None else (1e-4, 200)
+        cg = (ms.cg_tolerance, ms.cg_max_iterations) if ms is not None else (CG_TOLERANCE, CG_MAX_ITERATIONS)
         plans.append(StepPlan(s.name, s.duration, s.dt_safety, rho, mass, inertia, s.max_cycles, float(added),
                               start, selective, cg))
     return plans

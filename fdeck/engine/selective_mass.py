@@ -317,7 +317,7 @@ class SelectiveMass:
         self.diag = np.ones((n_node, 3))
         self.q_diag = np.zeros((n_el, k, 3))
         self.m = np.ones(n_node)
-        self.tol, self.max_it = 1e-4, 200
+        self.tol, self.max_it = 0.0, 0  # the step's (tolerance, cap): set by set_step, which activates
         self.active = False
         self.a = np.zeros((n_node, 3))
         self.a_last = np.zeros((n_node, 3))  # the two cycles before (warm-start extrapolation)
