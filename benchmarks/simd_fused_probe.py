@@ -3,6 +3,7 @@ route; a probe, not part of the engine or the tests).
 
     python benchmarks/simd_fused_probe.py                  # 10 000 elements, 1 thread, 3 rounds
     python benchmarks/simd_fused_probe.py --size 102400 --threads 2
+    python benchmarks/simd_fused_probe.py --size 102400 --copy  # each block's reference data copied linearly first
 
 Today's engine runs the element update as four passes over the elements, one element at a time (kinematics, the
 law, forces, hourglass: ``hex8`` and ``elastic``), then the deterministic gather into the nodes. Here the same
@@ -54,14 +55,20 @@ WORK_ROWS = 49
 
 
 @numba.njit(parallel=True, **FLAGS)
-def fused_blocks(x, conn_t, ref_t, lam, mu, fe_t, out_t, fe):
+def fused_blocks(x, conn_t, ref_t, lam, mu, fe_t, out_t, fe, copy):
     """One pass over blocks of LANES elements: fe_t (n_block, 24, LANES) element forces, rows 3 a + i; out_t
     (n_block, 4, LANES) psi, J, modulus, e_hg. conn_t (n_block, 8, LANES), ref_t (n_block, REF_ROWS, LANES).
     With fe (n_block LANES, 8, 3) not empty, the forces are also stored there, the engine's layout (``gather_add``
-    reads each element's 24 values from one place; the block layout puts a node's three in three cache lines)."""
+    reads each element's 24 values from one place; the block layout puts a node's three in three cache lines).
+    With copy, each block's reference chunk is first copied linearly into a local array (one stream to prefetch)."""
     for blk in numba.prange(conn_t.shape[0]):
         w = np.empty((WORK_ROWS, LANES))
         r = ref_t[blk]
+        if copy:
+            r = np.empty((REF_ROWS, LANES))
+            for k in range(REF_ROWS):
+                for l in range(LANES):
+                    r[k, l] = ref_t[blk, k, l]
         f = fe_t[blk]
         for a in range(8):  # gather: scalar loads
             for l in range(LANES):
@@ -205,6 +212,7 @@ def main() -> None:
     ap.add_argument("--size", type=int, default=10_000, help="elements (a 50 x n x 4 block)")
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--rounds", type=int, default=3)
+    ap.add_argument("--copy", action="store_true", help="copy each block's reference chunk into L1 first")
     args = ap.parse_args()
     numba.set_num_threads(args.threads)
     ny = max(1, args.size // 200)
@@ -252,12 +260,12 @@ def main() -> None:
     f_engine = np.zeros((n_node, 3))
 
     def blocked():
-        fused_blocks(x, conn_t, ref_t, lam, mu, fe_t, out_t, no_fe)
+        fused_blocks(x, conn_t, ref_t, lam, mu, fe_t, out_t, no_fe, args.copy)
         f_new[:] = 0.0
         gather_blocks(fe_t, ptr, offsets, f_new)
 
     def blocked_engine_layout():
-        fused_blocks(x, conn_t, ref_t, lam, mu, fe_t, out_t, fe_engine)
+        fused_blocks(x, conn_t, ref_t, lam, mu, fe_t, out_t, fe_engine, args.copy)
         f_engine[:] = 0.0
         gather_add(fe_engine, ptr, slots, f_engine)
 
@@ -279,7 +287,8 @@ def main() -> None:
         t_block = best_us_per_element(blocked, n, calls=50, repeats=5)
         e_today = best_us_per_element(today_elements, n, calls=50, repeats=5)
         t_engine = best_us_per_element(blocked_engine_layout, n, calls=50, repeats=5)
-        e_block = best_us_per_element(lambda: fused_blocks(x, conn_t, ref_t, lam, mu, fe_t, out_t, no_fe), n, 50, 5)
+        e_block = best_us_per_element(
+            lambda: fused_blocks(x, conn_t, ref_t, lam, mu, fe_t, out_t, no_fe, args.copy), n, 50, 5)
         print(f"round {k + 1}: today's passes + gather {t_today:.4f} us per element; fused blocks + gather "
               f"{t_block:.4f} us ({t_today / t_block:.2f}x), storing the engine's layout {t_engine:.4f} us "
               f"({t_today / t_engine:.2f}x); element update alone {e_today:.4f} against {e_block:.4f} us "
