@@ -167,7 +167,7 @@ def test_mass_and_momentum_unchanged():
     on the mass (a sum of 168 nodal masses), 1e-9 of the pair's impulse F T on the x, y momentum and 1e-9 relative
     on z (the conjugate-gradient residual, 1e-3 of the right-hand side per cycle at the default tolerance,
     projects to zero on the translation in exact arithmetic: 1^T (M + dM) a = 1^T r whatever a is; what is left is
-    round-off of sums over the nodes). Measured over 46 cycles (4.8 iterations per cycle; 5.9 at the former
+    round-off of sums over the nodes). Measured over 46 cycles (4.8 iterations per cycle; 5.8 at the former
     default 1e-4): mass -4e-16, x and y 2e-17 F T, z -8e-16."""
     data = free_block()
     problem = compile_deck(Deck.model_validate(data))
@@ -195,9 +195,9 @@ def test_energy_balance_and_solve_cost():
 
     Tolerance: central differences conserve energy with a constant mass up to O(dt^2): the unscaled strip's balance
     is 0.9e-5 of the work, the scaled one's 2.4e-4 (25 = 5^2 times larger, as the step is 5 times longer; the same
-    to 1e-8 of the work with a conjugate-gradient tolerance of 1e-10 instead of 1e-4, 41.7 against 12.2
-    iterations per cycle, so the solve's residual adds nothing visible; at the default 1e-3, 4.8 iterations and
-    2.37e-4); 1e-3 bounds that
+    to 1e-8 of the work with a conjugate-gradient tolerance of 1e-10, so the solve's residual adds nothing
+    visible (41.7 against 12.2 iterations per cycle at 1e-4 when first measured; today 7.6 at 1e-4 and 4.8 at the
+    default 1e-3, balance 2.37e-4); 1e-3 bounds that
     with room. The run's last cycle, shortened to end at the step's end, is left out: the engine's kinetic energy
     at t_n from the mean of two unequal half-step velocities jumps there with or without selective scaling (1.3e-3
     of the work unscaled, 3.3e-3 scaled, measured)."""
@@ -637,7 +637,7 @@ def test_default_solve_tolerance_gives_the_answer_of_a_tight_solve():
     answers scatter by -0.24 % to +0.16 % about the 1e-9 run, not in the order of the tolerance (measured). The
     default against 1e-4: within 1e-5 (0.1 % asserted). Iterations per cycle 4.8 against 6.0 (1e-4) and 17.6
     (1e-9); at most 0.9x the former default's asserted. The forming decks and the 3WEAVE cantilevers moved by at
-    most 6e-4 against 1e-4 (README, *Fewer cycles*)."""
+    most 0.2 % against 1e-4 (README, *Fewer cycles*)."""
     from fdeck.cards.mass_scaling import CG_TOLERANCE
 
     assert CG_TOLERANCE == 1e-3  # the value measured here and in the README
