@@ -164,6 +164,9 @@ def main():
         print(f"{name:24s} {us:8.4f} us per element")
     print(f"{'sum of parts':24s} {sum(us for k, us in r.items() if not k.startswith('cg_')):8.4f} (cg_ aside)")
     print(f"{'whole cycle':24s} {whole:8.4f}  (solver's split: {split})")
+    if args.formulation == "reduced" and args.material == "linear_elastic":
+        print("(reduced + linear_elastic: the engine's whole cycle runs hex8_blocks, the fused block path; the parts "
+              "above are the general path's four passes: benchmarks/simd_fused_probe.py compares the two)")
 
 
 if __name__ == "__main__":

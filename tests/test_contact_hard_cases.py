@@ -211,13 +211,13 @@ def test_3weave_block_in_a_die_pinched_past_the_lock_is_held_by_the_contact_spri
     fabric to the lock (its energy is infinite there); the tools' penalty springs (1000 MPa/mm) take the travel
     the block cannot, so the block must come to rest where its compaction stress equals the springs' pressure:
     (i) completed, no NaN, energy balance within 1 %; (ii) each plate's force equals the law's P33(lam) times the
-    area, lam measured from the plies' faces, within 1 % (a quasi-static point; measured 2e-5); (iii) and equals
-    k delta A, delta = (lam H0 - 0.15 H0) / 2 the overclosure of each plate (1 %; measured 3e-5); (iv) the block
+    area, lam measured from the plies' faces, within 1 % (a quasi-static point; measured 4e-6 and 7e-6); (iii) and
+    equals k delta A, delta = (lam H0 - 0.15 H0) / 2 the overclosure of each plate (1 %; measured 1e-6); (iv) the block
     ends deep in the stiff branch and short of the lock: 0.187 < lam < 0.45 (measured 0.389, c = -0.94, 30 kN,
-    about 30 000 times the force at lam = 0.9); (v) kinetic energy below 1e-3 of the internal energy at the end.
+    about 7 700 times the force at lam = 0.9); (v) kinetic energy below 1e-3 of the internal energy at the end.
     The free block of the test above loses strong ellipticity from lam = 0.39 and stops; the walls hold its faces.
     Not covered (README, Known limits): a stiffer penalty (1e4 MPa/mm) drives this walled block to lam = 0.35
-    (c = -1.07), where it goes unstable and an element inverts: the law's interior shear modes, not the walls."""
+    (c = -1.06), where it goes unstable and an element inverts: the law's interior shear modes, not the walls."""
     lam_tools = 0.15
     k = 1000.0
     data = pinch_deck(GAP + H0 * (1.0 - lam_tools) / 2.0)

@@ -13,7 +13,7 @@ Why this shape (docs/kernels.md, item 8): numba vectorises a lane loop only whil
 gamma, the hourglass coefficients: 472 B per element) are kept a second time in the block layout, and checkpoints
 carry them. Measured on a loaded machine (``benchmarks/simd_fused_probe.py`` for the kernel alone, the group's
 ``update`` in the engine: docs/kernels.md): the element update 1.5x (in the engine, which also stores F, P and
-the per-element values) to 2.4x (the probe) faster than the four passes at 10 000 elements.
+the per-element values) to about 2.5x (the probe's bare kernel) faster than the four passes at 10 000 elements.
 
 Shapes: blocks (n_block, rows, LANES); the engine's arrays as in ``hex8`` (F and P (n_el, 1, 3, 3), fe (n_el, 8, 3),
 psi and J (n_el, 1), modulus (n_el, 1, 3), e_hg and p_hg (n_el,)), written at the end of each block.
@@ -24,6 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from fdeck.jit import njit_inline, njit_parallel, prange
+from fdeck.physics.materials import elastic
 
 LANES = 64
 # rows of the reference array (n_block, REF_ROWS, LANES)
@@ -37,9 +38,10 @@ WORK_ROWS = 95
 
 
 def eligible(formulation: str, material, params: np.ndarray) -> bool:
-    """This path serves ``reduced`` with ``linear_elastic`` whose Lame constants are one pair for the group."""
-    return (formulation == "reduced" and getattr(material, "name", None) == "linear_elastic"
-            and bool(np.all(params == params[:1])))
+    """This path serves a non-empty ``reduced`` group of ``linear_elastic`` (its kernel, not only its name) whose
+    Lame constants are one pair for the group."""
+    return (formulation == "reduced" and getattr(material, "evaluate", None) is elastic.evaluate
+            and len(params) > 0 and bool(np.all(params == params[:1])))
 
 
 def _to_blocks(a: np.ndarray, n_block: int) -> np.ndarray:
@@ -61,7 +63,11 @@ class Blocks:
         ref = np.concatenate([b.reshape(n, 24), V0[:, None], gamma.reshape(n, 32), k_hg[:, None], c_hg[:, None]],
                              axis=1)
         self.ref_t = _to_blocks(ref, n_block)
-        self.lam, self.mu = float(params[0, 0]), float(params[0, 1])
+        # copies of the group's constants (built once: hex8 never changes them after construction); read-only, so a
+        # checkpoint does not carry them (snapshots skip read-only arrays) and nothing writes them by mistake
+        self.conn_t.setflags(write=False)
+        self.ref_t.setflags(write=False)
+        self.lam, self.mu = float(params[0, elastic.PARAMS.lam]), float(params[0, elastic.PARAMS.mu])
         self.use_k, self.use_c = bool(np.any(k_hg != 0.0)), bool(np.any(c_hg != 0.0))
         # hex8 skips an element's sums where its coefficient is zero; per lane only if the group mixes zero and not
         self.mixed = bool((self.use_k and not np.all(k_hg != 0.0)) or (self.use_c and not np.all(c_hg != 0.0)))
