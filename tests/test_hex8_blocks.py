@@ -6,8 +6,9 @@ too; and it is the path such a group takes.
 
 Reference: the general path itself, run on the same group with ``blocks`` switched off. Tolerance: zero, compared
 as bit patterns (every value is formed by the same operations in the same order; a difference in the last bit,
-or in the sign of a zero, would mean the block path computes something else). Checked: element forces, gathered nodal forces, F, P, J, energy density, step moduli,
-hourglass energy and dissipation, the output fields, and a whole run's history."""
+or in the sign of a zero, would mean the block path computes something else). Checked: element forces, gathered
+nodal forces, F, P, J, energy density, step moduli, hourglass energy and dissipation, the output fields, and a
+whole run's history."""
 
 from __future__ import annotations
 

@@ -12,8 +12,9 @@ CG_TOLERANCE = 1e-3
 """Default relative tolerance of the selective-mass solve. Against 1e-4 (the default until 2026-11-28) it costs
 21-38 % fewer iterations per cycle; the coarse tetrahedron's mean punch force moved by -0.18 %, every other answer
 measured by at most 6e-4 (coarse tetrahedron and 0/90 double dome: energies, friction, draw-in, the dome's punch
-force; 3WEAVE cantilevers: tip deflection within 1e-5; README, *Fewer cycles*). The residual is measured against the net force of the cycle, which a quasi-static run keeps small,
-so the error it leaves is a small fraction of the inertia, not of the forces that form the part."""
+force; 3WEAVE cantilevers: tip deflection within 1e-5; README, *Fewer cycles*). The residual is measured against
+the net force of the cycle, which a quasi-static run keeps small, so the error it leaves is a small fraction of the
+inertia, not of the forces that form the part."""
 CG_MAX_ITERATIONS = 200
 """Default iteration cap of the selective-mass solve per cycle."""
 
@@ -44,12 +45,14 @@ class MassScaling(Card):
         "which added mass does not slow). The kinetic energy that mass brings is booked as work "
         "(`mass_tracking_work`), the added mass is a history column (`tracked_added_mass`, per cent of the "
         "physical mass). LS-DYNA adds conventional mass during a run in the same way (negative DT2MS).")
-    cg_tolerance: float = Field(CG_TOLERANCE, gt=0, lt=1, description="Selective scaling: the conjugate-gradient solve "
-                                "stops when the residual's norm (weighted by the inverse diagonal) falls below "
-                                "this fraction of the right-hand side's (the cycle's net force) [-]; against 1e-4 the default "
-                                "1e-3 took 21-38 % fewer iterations and moved the answers measured by at most 0.2 %.")
-    cg_max_iterations: int = Field(CG_MAX_ITERATIONS, ge=1, description="Selective scaling: iteration cap of the solve per cycle; "
-                                   "a cycle that reaches it is counted and reported, not stopped.")
+    cg_tolerance: float = Field(
+        CG_TOLERANCE, gt=0, lt=1, description="Selective scaling: the conjugate-gradient solve stops when the "
+        "residual's norm (weighted by the inverse diagonal) falls below this fraction of the right-hand side's (the "
+        "cycle's net force) [-]; against 1e-4 the default 1e-3 took 21-38 % fewer iterations and moved the answers "
+        "measured by at most 0.2 %.")
+    cg_max_iterations: int = Field(
+        CG_MAX_ITERATIONS, ge=1, description="Selective scaling: iteration cap of the solve per cycle; a cycle that "
+        "reaches it is counted and reported, not stopped.")
 
     @model_validator(mode="after")
     def _one_of(self):
