@@ -98,7 +98,12 @@ def update_blocks(x, v, conn_t, ref_t, lam, mu, use_k, use_c, mixed, n_el, F, P,
                     w[VEL_ROW + 3 * a + 2, l] = v[n, 2]
         _kinematics_and_law(w, r, lam, mu)
         _forces(w, r, f)
-        _hourglass(w, r, f, use_k, use_c, mixed)
+        if use_k or use_c:  # (without hourglass control hex8 adds nothing, not even zeros: -0.0 stays)
+            _hourglass(w, r, f, use_k, use_c, mixed)
+        else:
+            for l in range(LANES):
+                w[EH_ROW, l] = 0.0
+                w[PH_ROW, l] = 0.0
         for l in range(LANES):  # back to the engine's layout, while the block is in L1
             e = blk * LANES + l
             if e >= n_el:
