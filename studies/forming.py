@@ -4,7 +4,7 @@
                                      [--frame K] [--limits LO HI]  # frame K (default the last), colour range
     python studies/forming.py force RESULT_DIR... OUT.png [--tool punch]   # punch force against stroke
     python studies/forming.py paths PATH_NAME RESULT_DIR... OUT.png [--labels L...]  # shear along a path, runs compared
-    python studies/forming.py retable DECK RESULT_DIR OUT_DIR [--set PATH=VALUE...] [--frame K]  # tables at a frame
+    python studies/forming.py retable DECK RESULT_DIR OUT_DIR [--set PATH=VALUE...] [--frame K...]  # tables at frames
     python studies/forming.py mirror RESULT_DIR       # full model: how far each frame's shear is from mirror symmetry
     python studies/forming.py ellipticity RESULT_DIR FRAMES [--box B] [--preset 3weave]  # elements past the law's limit
     python studies/forming.py rows PATH_NAME RESULT_DIR... [--until S]  # element-to-element alternation along a path
@@ -20,7 +20,8 @@ and prints, for each run after the first, the largest difference from the first 
 (linear interpolation in arc length; each run's angle is its elements' own, constant per element).
 `retable` writes the end-of-run tables (``output.paths``, ``fibres.csv``) of DECK as they would be at the end of
 the run in RESULT_DIR, from its last frame's displacements (``--frame K``: from frame K instead, to compare runs
-at the same stroke): for a path added or changed after an hours-long run;
+at the same stroke; several frames: the deck compiled once, frame K's tables in OUT_DIR_K): for a path added or
+changed after an hours-long run;
 ``--set`` changes the deck first (deck paths as in a study, values in YAML: ``--set mesh.block.divisions=[60,25,2]``
 for a study variant's mesh, ``--set output.paths.2.window=10`` for another window).
 Exact for hyperelastic hexahedral blanks (their fields depend on the positions only); shells with rotational
@@ -245,9 +246,10 @@ def rows(name: str, result_dir, until: float = np.inf, columns=None) -> tuple[fl
     return rms(near), float(np.abs(near).max()) if len(near) else float("nan"), rms(far)
 
 
-def retable(deck_path, result_dir, out_dir, sets: dict | None = None, frame: int = -1) -> list[str]:
+def retable(deck_path, result_dir, out_dir, sets: dict | None = None, frame: int | list[int] = -1) -> list[str]:
     """Write DECK's end-of-run tables at blank frame ``frame`` (default the last) of ``result_dir`` into
-    ``out_dir``, after setting the deck paths ``sets`` ({path: value}); returns the file names."""
+    ``out_dir``, after setting the deck paths ``sets`` ({path: value}); returns the file names. With a list of
+    frames the deck is compiled once and frame K's tables go to ``out_dir``_K."""
     import meshio
 
     from fdeck.compile.problem import compile_deck
@@ -267,15 +269,20 @@ def retable(deck_path, result_dir, out_dir, sets: dict | None = None, frame: int
     problem = compile_deck(Deck.model_validate(data), deck_path.parent)
     if problem.rotations is not None:
         raise SystemExit("retable: shells with rotations need their directors, which the frames do not hold")
-    u = meshio.read(blank_frames(Path(result_dir))[frame]).point_data["displacement"]
-    if u.shape != problem.X.shape:
-        raise SystemExit(f"retable: the frame has {len(u)} nodes, the deck {len(problem.X)}: not this deck's run")
-    x = problem.X + u
-    for g in problem.groups:
-        g.update(x, np.zeros_like(x))
-    Path(out_dir).mkdir(parents=True, exist_ok=True)
+    files = blank_frames(Path(result_dir))
     paths = [PathTable(c, problem.groups, problem.X, problem.cells) for c in problem.deck.output.paths]
-    return write_end_tables(problem, paths, Path(out_dir), x)
+    names = []
+    for k in frame if isinstance(frame, list) else [frame]:
+        u = meshio.read(files[k]).point_data["displacement"]
+        if u.shape != problem.X.shape:
+            raise SystemExit(f"retable: the frame has {len(u)} nodes, the deck {len(problem.X)}: not this deck's run")
+        x = problem.X + u
+        for g in problem.groups:
+            g.update(x, np.zeros_like(x))
+        out = Path(f"{out_dir}_{k}") if isinstance(frame, list) else Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        names += write_end_tables(problem, paths, out, x)
+    return names
 
 
 def _reference_frames(result_dir):
@@ -358,7 +365,8 @@ def parser() -> argparse.ArgumentParser:
     t.add_argument("out_dir")
     t.add_argument("--set", nargs="+", action="extend", default=[], metavar="PATH=VALUE",
                    help="deck path = YAML value (repeatable)")
-    t.add_argument("--frame", type=int, default=-1, help="blank frame index (0 = the initial one; default the last)")
+    t.add_argument("--frame", type=int, nargs="+", default=[-1],
+                   help="blank frame index (0 = the initial one; default the last); several: OUT_DIR_K for each")
     mi = sub.add_parser("mirror")
     mi.add_argument("result_dir")
     el = sub.add_parser("ellipticity")
@@ -393,7 +401,7 @@ def main() -> None:
         import yaml
 
         sets = dict((k, yaml.safe_load(v)) for k, v in (item.split("=", 1) for item in a.set))
-        print(" ".join(retable(a.deck, a.result_dir, a.out_dir, sets, a.frame)))
+        print(" ".join(retable(a.deck, a.result_dir, a.out_dir, sets, a.frame if len(a.frame) > 1 else a.frame[0])))
     elif a.cmd == "rows":
         for d in a.result_dirs:
             columns = element_rows(d, a.name)

@@ -236,6 +236,11 @@ output:
     # an earlier frame (--frame): the initial one is the undeformed blank, shear zero along the path
     _forming_script().retable(deck_path, tmp_path / "run", tmp_path / "first", frame=0)
     assert np.abs(read_table(tmp_path / "first" / "path_mid.csv")["shear_angle"]).max() < 1e-9
+    # several frames at once (the deck compiled once): each the same table as alone, to the bit
+    _forming_script().retable(deck_path, tmp_path / "run", tmp_path / "both", frame=[0, -1])
+    for alone, k in (("first", 0), ("again", -1)):
+        one, many = read_table(tmp_path / alone / "path_mid.csv"), read_table(tmp_path / f"both_{k}" / "path_mid.csv")
+        assert all(np.array_equal(one[c], many[c]) for c in one), k
 
 
 def test_retable_takes_every_set_whether_given_once_or_repeated_and_names_a_bad_one():
