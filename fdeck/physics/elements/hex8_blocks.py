@@ -10,8 +10,8 @@ hourglass forces in lane loops over 1-D rows. Every value is formed by the same 
 
 Why this shape (docs/kernels.md, item 8): numba vectorises a lane loop only while it writes and reads few arrays
 (LLVM's runtime alias checks), hence one work and one reference array per block. The reference data (b, V0,
-gamma, the hourglass coefficients: 472 B per element) are kept a second time in the block layout, and checkpoints
-carry them. Measured on a loaded machine (``benchmarks/simd_fused_probe.py`` for the kernel alone, the group's
+gamma, the hourglass coefficients: 472 B per element) are kept a second time in the block layout, read-only (so
+checkpoints, which skip read-only arrays, do not carry them). Measured on a loaded machine (``benchmarks/simd_fused_probe.py`` for the kernel alone, the group's
 ``update`` in the engine: docs/kernels.md): the element update 1.5x (in the engine, which also stores F, P and
 the per-element values) to about 2.5x (the probe's bare kernel) faster than the four passes at 10 000 elements.
 
@@ -235,7 +235,6 @@ def _hourglass(w, r, f, use_k, use_c, mixed):
                 t += h2[l] * g2[l]
                 t += h3[l] * g3[l]
                 o[l] = t
-
 
 
 @njit_inline
