@@ -11,9 +11,11 @@ hourglass forces in lane loops over 1-D rows. Every value is formed by the same 
 Why this shape (docs/kernels.md, item 8): numba vectorises a lane loop only while it writes and reads few arrays
 (LLVM's runtime alias checks), hence one work and one reference array per block. The reference data (b, V0,
 gamma, the hourglass coefficients: 472 B per element) are kept a second time in the block layout, read-only (so
-checkpoints, which skip read-only arrays, do not carry them). Measured on a loaded machine (``benchmarks/simd_fused_probe.py`` for the kernel alone, the group's
-``update`` in the engine: docs/kernels.md): the element update 1.5x (in the engine, which also stores F, P and
-the per-element values) to about 2.5x (the probe's bare kernel) faster than the four passes at 10 000 elements.
+checkpoints, which skip read-only arrays, do not carry them). The law is ``elastic.stress``, the one definition
+``elastic.point`` evaluates too. Measured on a loaded machine (``benchmarks/simd_fused_probe.py`` for the kernel
+alone, the group's ``update`` in the engine: docs/kernels.md): the element update 1.5x (in the engine, which also
+stores F, P and the per-element values) to about 2.5x (the probe's bare kernel) faster than the four passes at
+10 000 elements.
 
 Shapes: blocks (n_block, rows, LANES); the engine's arrays as in ``hex8`` (F and P (n_el, 1, 3, 3), fe (n_el, 8, 3),
 psi and J (n_el, 1), modulus (n_el, 1, 3), e_hg and p_hg (n_el,)), written at the end of each block.
@@ -127,7 +129,7 @@ def update_blocks(x, v, conn_t, ref_t, lam, mu, use_k, use_c, mixed, n_el, F, P,
 
 @njit_inline
 def _kinematics_and_law(w, r, lam, mu):
-    """F = sum_a x_a (x) b_a, J = det F, and St Venant-Kirchhoff's P, psi and step modulus (``elastic.point``)."""
+    """F = sum_a x_a (x) b_a, J = det F, and St Venant-Kirchhoff's P, psi and step modulus (``elastic.stress``)."""
     for l in range(LANES):
         f00 = 0.0
         f01 = 0.0
@@ -154,30 +156,13 @@ def _kinematics_and_law(w, r, lam, mu):
         w[F_ROW + 3, l], w[F_ROW + 4, l], w[F_ROW + 5, l] = f10, f11, f12
         w[F_ROW + 6, l], w[F_ROW + 7, l], w[F_ROW + 8, l] = f20, f21, f22
         w[J_ROW, l] = f00 * (f11 * f22 - f12 * f21) - f01 * (f10 * f22 - f12 * f20) + f02 * (f10 * f21 - f11 * f20)
-        e00 = 0.5 * (f00 * f00 + f10 * f10 + f20 * f20 - 1.0)
-        e11 = 0.5 * (f01 * f01 + f11 * f11 + f21 * f21 - 1.0)
-        e22 = 0.5 * (f02 * f02 + f12 * f12 + f22 * f22 - 1.0)
-        e01 = 0.5 * (f00 * f01 + f10 * f11 + f20 * f21)
-        e12 = 0.5 * (f01 * f02 + f11 * f12 + f21 * f22)
-        e02 = 0.5 * (f00 * f02 + f10 * f12 + f20 * f22)
-        tr = e00 + e11 + e22
-        s00, s11, s22 = lam * tr + 2.0 * mu * e00, lam * tr + 2.0 * mu * e11, lam * tr + 2.0 * mu * e22
-        s01, s12, s02 = 2.0 * mu * e01, 2.0 * mu * e12, 2.0 * mu * e02
-        w[P_ROW, l] = f00 * s00 + f01 * s01 + f02 * s02
-        w[P_ROW + 1, l] = f00 * s01 + f01 * s11 + f02 * s12
-        w[P_ROW + 2, l] = f00 * s02 + f01 * s12 + f02 * s22
-        w[P_ROW + 3, l] = f10 * s00 + f11 * s01 + f12 * s02
-        w[P_ROW + 4, l] = f10 * s01 + f11 * s11 + f12 * s12
-        w[P_ROW + 5, l] = f10 * s02 + f11 * s12 + f12 * s22
-        w[P_ROW + 6, l] = f20 * s00 + f21 * s01 + f22 * s02
-        w[P_ROW + 7, l] = f20 * s01 + f21 * s11 + f22 * s12
-        w[P_ROW + 8, l] = f20 * s02 + f21 * s12 + f22 * s22
-        w[PSI_ROW, l] = 0.5 * lam * tr * tr + mu * (e00 * e00 + e11 * e11 + e22 * e22
-                                                    + 2.0 * (e01 * e01 + e12 * e12 + e02 * e02))
-        # tensor.sym_bound6 of E and S, written out (elastic.point's step modulus)
-        c_max = 1.0 + 2.0 * max(e00 + abs(e01) + abs(e02), e11 + abs(e01) + abs(e12), e22 + abs(e02) + abs(e12))
-        sb = max(s00 + abs(s01) + abs(s02), s11 + abs(s01) + abs(s12), s22 + abs(s02) + abs(s12))
-        w[M_ROW, l] = max(0.0, sb) + (3.0 * lam + 2.0 * mu) * c_max
+        p00, p01, p02, p10, p11, p12, p20, p21, p22, psi, m = elastic.stress(
+            f00, f01, f02, f10, f11, f12, f20, f21, f22, lam, mu)
+        w[P_ROW, l], w[P_ROW + 1, l], w[P_ROW + 2, l] = p00, p01, p02
+        w[P_ROW + 3, l], w[P_ROW + 4, l], w[P_ROW + 5, l] = p10, p11, p12
+        w[P_ROW + 6, l], w[P_ROW + 7, l], w[P_ROW + 8, l] = p20, p21, p22
+        w[PSI_ROW, l] = psi
+        w[M_ROW, l] = m
 
 
 @njit_inline
