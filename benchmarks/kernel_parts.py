@@ -117,10 +117,10 @@ def cg_parts(s, x) -> dict:
     rng = np.random.default_rng(1)
     p, res = rng.standard_normal(x.shape), rng.standard_normal(x.shape)
     q, z, a = np.zeros_like(x), np.zeros_like(x), np.zeros_like(x)
-    ye = np.zeros(s.conn.shape + (3,))
+    rows = np.zeros((len(s.conn), sm.ROW))
     return {
-        "cg_element_added": lambda: sm.element_added(p, s.conn, s.dX, s.Jinv, s.c, ye),
-        "cg_gather_dot": lambda: sm._gather_dot(ye, s.ptr, s.slots, q, p, s.free, s._part),
+        "cg_element_rows": lambda: sm.element_rows(p, s.conn, s.X, s.Xc, s.Jinv, s.c, rows),
+        "cg_gather_dot": lambda: sm._gather_dot(rows, s.ptr, s.elems, s.X, q, p, s.free, s._part),
         "cg_direction": lambda: sm._direction(z, res, s.dinv, p, 0.5, q, s.m),
         "cg_step": lambda: sm._step(a, res, p, q, s.free, 0.0, s.dinv, s._part),
     }
@@ -137,12 +137,12 @@ def cg_solve_per_iteration(s, g, x) -> float:
     r = np.zeros_like(x)
     g.add_forces(r)
     r = -r
-    work = [np.zeros(s.conn.shape + (3,))] + [np.zeros_like(x) for _ in range(4)]
+    work = [np.zeros((len(s.conn), sm.ROW))] + [np.zeros_like(x) for _ in range(4)]
     best = float("inf")
     for _ in range(3):
         a = np.zeros_like(x)
         t0 = time.perf_counter()
-        it, _ = sm.solve(a, r, s.m, s.conn, s.dX, s.Jinv, s.c, s.ptr, s.slots, s.free, s.dinv, s.tol, s.max_it,
+        it, _ = sm.solve(a, r, s.m, s.conn, s.X, s.Xc, s.Jinv, s.c, s.ptr, s.elems, s.free, s.dinv, s.tol, s.max_it,
                          *work, s._part)
         best = min(best, (time.perf_counter() - t0) / max(it, 1))
     return 1e6 * best / len(s.conn)
@@ -164,7 +164,7 @@ def main():
         print(f"{name:24s} {us:8.4f} us per element")
     print(f"{'sum of parts':24s} {sum(us for k, us in r.items() if not k.startswith('cg_')):8.4f} (cg_ aside)")
     print(f"{'whole cycle':24s} {whole:8.4f}  (solver's split: {split})")
-    if args.formulation == "reduced" and args.material == "linear_elastic":
+    if a.formulation == "reduced" and a.material == "linear_elastic":
         print("(reduced + linear_elastic: the engine's whole cycle runs hex8_blocks, the fused block path; the parts "
               "above are the general path's four passes: benchmarks/simd_fused_probe.py compares the two)")
 

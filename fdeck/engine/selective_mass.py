@@ -32,19 +32,20 @@ projector by less than 0.01 % (``tests/test_selective_mass.py``).
 
 Per cycle the engine forms r = f_ext - f_int + f_damp, and the constraints fix the accelerations a_c of prescribed
 dofs; the free accelerations solve (M + dM)_ff a_f = r_f - dM_fc a_c by conjugate gradients preconditioned by the
-diagonal, warm-started from the last cycle's a, with element-by-element products (no assembled matrix) and a
-deterministic gather (CSR node -> slots, ``engine.gather``); dot products are summed per fixed chunk of nodes and
-then serially, so runs are bitwise identical on any thread count.
+diagonal, warm-started from the last cycles' a, with element-by-element products (no assembled matrix): each
+element reduces p to seven numbers (``element_rows``) and each node sums its elements' in a fixed order (CSR node
+-> slots, ``engine.gather.node_slots``); dot products are summed per fixed chunk of nodes and then serially, so
+runs are bitwise identical on any thread count.
 
-Shapes: nodal arrays (n_node, 3) [mm/s^2, N, mm/s]; m (n_node,) [t]; conn (n_el, n) node indices; c (n_el,)
-= beta_e m_e / n [t]; free (n_node, 3) 1.0 on free dofs, 0.0 on prescribed ones.
+Shapes: nodal arrays (n_node, 3) [mm/s^2, N, mm/s]; m (n_node,) [t]; conn (n_el, 8) node indices (int32); c
+(n_el,) = beta_e m_e / n [t]; free (n_node, 3) 1.0 on free dofs, 0.0 on prescribed ones.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from fdeck.engine.gather import gather_add, node_slots, node_sum, slot_rows
+from fdeck.engine.gather import node_slots
 from fdeck.jit import njit, njit_inline, njit_parallel, prange
 
 WARM_START_ORDER = 2
@@ -55,60 +56,111 @@ CHUNK = 256  # nodes per partial sum of a dot product (fixed, so the sums do not
 
 NODES = 8  # hexahedra only (shells are refused): a constant trip count lets the compiler unroll the node loops
 
+ROW = 8
+"""Doubles per element in the product's rows: c_e, s_e (3), W_e (3) and one pad, so that a row is one 64-byte
+cache line (``element_rows``)."""
+
 
 @njit_inline
-def _rigid_fit(p, conn, dX, Jinv, e):
+def _rigid_fit(p, conn, X, Xc, Jinv, e):
     """The rigid part of element e's nodal values p: (mean, w) as six scalars, w = Jinv sum_a dX_a x p_a (the
-    best-fitting rotation; (I - P_e) p_a = p_a - mean - w x dX_a). No allocation (called per element).
+    best-fitting rotation; (I - P_e) p_a = p_a - mean - w x dX_a, dX_a = X_a - Xc_e). No allocation.
 
-    One pass over the nodes: sum_a dX_a x (p_a - mean) is written sum_a dX_a x p_a because sum_a dX_a = 0 (up to
-    round-off, relative 1e-16 |X| / |dX|). With the node count a constant as well, element_added went 0.057 ->
-    0.037 us per element (``benchmarks/kernel_parts.py fbar fabric_hyper_3weave --selective 30``, 10 000
-    hexahedra, one thread; the bits differ in the last place)."""
-    m0 = 0.0
-    m1 = 0.0
-    m2 = 0.0
-    L0 = 0.0
-    L1 = 0.0
-    L2 = 0.0
+    One pass over the nodes, without stored dX: sum_a dX_a x p_a = sum_a X_a x p_a - Xc x sum_a p_a (X about the
+    model's centre, so the two terms cancel to a relative round-off of about 1e-16 |X| / |dX|, as the former
+    one-pass form sum_a dX_a x (p_a - mean) = sum_a dX_a x p_a did through sum_a dX_a = 0). Jinv (n_el, 6) holds
+    the symmetric inverse by its upper triangle (00, 01, 02, 11, 12, 22)."""
+    s0 = 0.0
+    s1 = 0.0
+    s2 = 0.0
+    t0 = 0.0
+    t1 = 0.0
+    t2 = 0.0
     for a in range(NODES):
         n = conn[e, a]
         d0 = p[n, 0]
         d1 = p[n, 1]
         d2 = p[n, 2]
-        m0 += d0
-        m1 += d1
-        m2 += d2
-        L0 += dX[e, a, 1] * d2 - dX[e, a, 2] * d1
-        L1 += dX[e, a, 2] * d0 - dX[e, a, 0] * d2
-        L2 += dX[e, a, 0] * d1 - dX[e, a, 1] * d0
-    w0 = Jinv[e, 0, 0] * L0 + Jinv[e, 0, 1] * L1 + Jinv[e, 0, 2] * L2
-    w1 = Jinv[e, 1, 0] * L0 + Jinv[e, 1, 1] * L1 + Jinv[e, 1, 2] * L2
-    w2 = Jinv[e, 2, 0] * L0 + Jinv[e, 2, 1] * L1 + Jinv[e, 2, 2] * L2
-    return m0 / NODES, m1 / NODES, m2 / NODES, w0, w1, w2
+        x0 = X[n, 0]
+        x1 = X[n, 1]
+        x2 = X[n, 2]
+        s0 += d0
+        s1 += d1
+        s2 += d2
+        t0 += x1 * d2 - x2 * d1
+        t1 += x2 * d0 - x0 * d2
+        t2 += x0 * d1 - x1 * d0
+    c0 = Xc[e, 0]
+    c1 = Xc[e, 1]
+    c2 = Xc[e, 2]
+    L0 = t0 - (c1 * s2 - c2 * s1)
+    L1 = t1 - (c2 * s0 - c0 * s2)
+    L2 = t2 - (c0 * s1 - c1 * s0)
+    w0 = Jinv[e, 0] * L0 + Jinv[e, 1] * L1 + Jinv[e, 2] * L2
+    w1 = Jinv[e, 1] * L0 + Jinv[e, 3] * L1 + Jinv[e, 4] * L2
+    w2 = Jinv[e, 2] * L0 + Jinv[e, 4] * L1 + Jinv[e, 5] * L2
+    return s0 / NODES, s1 / NODES, s2 / NODES, w0, w1, w2
 
 
 @njit_parallel
-def element_added(p, conn, dX, Jinv, c, ye):
-    """ye (n_el, 8, 3) = c_e (I - P_e) p_e for each element: the element products dM_e p. dX (n_el, 8, 3)
-    reference positions about the element's centre [mm], Jinv (n_el, 3, 3) inverse of sum_a |dX_a|^2 I - dX_a dX_a
-    [1/mm^2]."""
+def element_rows(p, conn, X, Xc, Jinv, c, rows):
+    """rows (n_el, ROW): per element what dM_e p needs at its nodes, c_e (I - P_e) p at node a being
+    c_e p_a + s_e - W_e x X_a with W_e = c_e w_e and s_e = -c_e mean_e + W_e x Xc_e [N]: row = (c_e, s_e, W_e, 0).
+
+    Seven numbers per element instead of the eight nodal products (24): the product's traffic per element and
+    iteration falls from about 780 to about 270 bytes (``_node_added`` finishes it per node). X (n_node, 3) and Xc
+    (n_el, 3) reference positions about the model's centre [mm], Jinv (n_el, 6) [1/mm^2], c (n_el,) [t]."""
     for e in prange(conn.shape[0]):
-        m0, m1, m2, w0, w1, w2 = _rigid_fit(p, conn, dX, Jinv, e)
+        m0, m1, m2, w0, w1, w2 = _rigid_fit(p, conn, X, Xc, Jinv, e)
         ce = c[e]
-        for a in range(NODES):
-            n = conn[e, a]
-            ye[e, a, 0] = ce * (p[n, 0] - m0 - (w1 * dX[e, a, 2] - w2 * dX[e, a, 1]))
-            ye[e, a, 1] = ce * (p[n, 1] - m1 - (w2 * dX[e, a, 0] - w0 * dX[e, a, 2]))
-            ye[e, a, 2] = ce * (p[n, 2] - m2 - (w0 * dX[e, a, 1] - w1 * dX[e, a, 0]))
+        W0 = ce * w0
+        W1 = ce * w1
+        W2 = ce * w2
+        rows[e, 0] = ce
+        rows[e, 1] = W1 * Xc[e, 2] - W2 * Xc[e, 1] - ce * m0
+        rows[e, 2] = W2 * Xc[e, 0] - W0 * Xc[e, 2] - ce * m1
+        rows[e, 3] = W0 * Xc[e, 1] - W1 * Xc[e, 0] - ce * m2
+        rows[e, 4] = W0
+        rows[e, 5] = W1
+        rows[e, 6] = W2
+        rows[e, 7] = 0.0
+
+
+@njit_inline
+def _node_added(rows, ptr, elems, X, p, i):
+    """(dM p)_i as three scalars: sum over the slots of node i (``elems``: the element of each slot, in slot
+    order, an element twice where it repeats the node) of c_e p_i + s_e - W_e x X_i."""
+    cs = 0.0
+    s0 = 0.0
+    s1 = 0.0
+    s2 = 0.0
+    W0 = 0.0
+    W1 = 0.0
+    W2 = 0.0
+    for k in range(ptr[i], ptr[i + 1]):
+        e = elems[k]
+        cs += rows[e, 0]
+        s0 += rows[e, 1]
+        s1 += rows[e, 2]
+        s2 += rows[e, 3]
+        W0 += rows[e, 4]
+        W1 += rows[e, 5]
+        W2 += rows[e, 6]
+    x0 = X[i, 0]
+    x1 = X[i, 1]
+    x2 = X[i, 2]
+    return (cs * p[i, 0] + s0 - (W1 * x2 - W2 * x1), cs * p[i, 1] + s1 - (W2 * x0 - W0 * x2),
+            cs * p[i, 2] + s2 - (W0 * x1 - W1 * x0))
 
 
 @njit_parallel
-def _scaled(q, m, p):
-    """q = m p (row-wise)."""
-    for i in prange(q.shape[0]):
-        for j in range(3):
-            q[i, j] = m[i] * p[i, j]
+def gather_added(rows, ptr, elems, X, p, y):
+    """y (n_node, 3) = dM p from the element rows of p (``element_rows``), node by node in a fixed order."""
+    for i in prange(y.shape[0]):
+        y0, y1, y2 = _node_added(rows, ptr, elems, X, p, i)
+        y[i, 0] = y0
+        y[i, 1] = y1
+        y[i, 2] = y2
 
 
 @njit_inline
@@ -145,20 +197,18 @@ def _direction(z, res, dinv, p, beta, q, m):
 
 
 @njit_parallel
-def _gather_dot(ye, ptr, slots, q, p, free, part):
-    """q += the element products ye (n_el, 8, 3) gathered per node in a fixed order (``engine.gather``), and
-    returns p . q on the free dofs, summed per chunk of CHUNK nodes and then serially (the same operations, in the
-    same order, as ``gather_add`` followed by ``dot``: one pass)."""
+def _gather_dot(rows, ptr, elems, X, q, p, free, part):
+    """q += dM p from the element rows of p, and returns p . q on the free dofs, summed per chunk of CHUNK nodes
+    and then serially (deterministic: one pass)."""
     n = q.shape[0]
     n_chunk = part.shape[0]
-    rows = slot_rows(ye)
     for c in prange(n_chunk):
         s = 0.0
         for i in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
-            s0, s1, s2 = node_sum(rows, ptr, slots, i)
-            q[i, 0] += s0
-            q[i, 1] += s1
-            q[i, 2] += s2
+            y0, y1, y2 = _node_added(rows, ptr, elems, X, p, i)
+            q[i, 0] += y0
+            q[i, 1] += y1
+            q[i, 2] += y2
             for j in range(3):
                 s += p[i, j] * q[i, j] * free[i, j]
         part[c] = s
@@ -182,25 +232,55 @@ def _step(a, res, p, q, free, alpha, dinv, part):
     return _total(part)
 
 
+@njit_parallel
+def _residual(r, q, free, dinv, res, part):
+    """res = (r - q) on the free dofs (0 on the others), and returns res . D^-1 res by chunks."""
+    n = r.shape[0]
+    n_chunk = part.shape[0]
+    for c in prange(n_chunk):
+        s = 0.0
+        for i in range(c * CHUNK, min(n, (c + 1) * CHUNK)):
+            for j in range(3):
+                res[i, j] = (r[i, j] - q[i, j]) * free[i, j]
+                s += res[i, j] * res[i, j] * dinv[i, j]
+        part[c] = s
+    return _total(part)
+
+
+@njit_parallel
+def _prescribed(a, free, z):
+    """z = a on the prescribed dofs, 0 on the free ones; returns how many prescribed dofs are nonzero."""
+    count = 0
+    for i in prange(a.shape[0]):
+        for j in range(3):
+            z[i, j] = a[i, j] * (1.0 - free[i, j])
+            if z[i, j] != 0.0:
+                count += 1
+    return count
+
+
 @njit_inline
-def _deformation_square(vn, conn, dX, Jinv, e):
+def _deformation_square(vn, conn, X, Xc, Jinv, e):
     """|(I - P_e) vn_e|^2 [mm^2/s^2] of element e: its nodal velocities less their rigid part, squared."""
-    m0, m1, m2, w0, w1, w2 = _rigid_fit(vn, conn, dX, Jinv, e)
+    m0, m1, m2, w0, w1, w2 = _rigid_fit(vn, conn, X, Xc, Jinv, e)
     s = 0.0
     for a in range(NODES):
         n = conn[e, a]
-        d0 = vn[n, 0] - m0 - (w1 * dX[e, a, 2] - w2 * dX[e, a, 1])
-        d1 = vn[n, 1] - m1 - (w2 * dX[e, a, 0] - w0 * dX[e, a, 2])
-        d2 = vn[n, 2] - m2 - (w0 * dX[e, a, 1] - w1 * dX[e, a, 0])
+        r0 = X[n, 0] - Xc[e, 0]
+        r1 = X[n, 1] - Xc[e, 1]
+        r2 = X[n, 2] - Xc[e, 2]
+        d0 = vn[n, 0] - m0 - (w1 * r2 - w2 * r1)
+        d1 = vn[n, 1] - m1 - (w2 * r0 - w0 * r2)
+        d2 = vn[n, 2] - m2 - (w0 * r1 - w1 * r0)
         s += d0 * d0 + d1 * d1 + d2 * d2
     return s
 
 
 @njit_parallel
-def _kinetic(vn, conn, dX, Jinv, c, ke_e):
+def _kinetic(vn, conn, X, Xc, Jinv, c, ke_e):
     """ke_e (n_el,) = 1/2 c_e |(I - P_e) vn_e|^2 [mJ] (vn (n_node, 3) the velocities at t_n)."""
     for e in prange(conn.shape[0]):
-        ke_e[e] = 0.5 * c[e] * _deformation_square(vn, conn, dX, Jinv, e)
+        ke_e[e] = 0.5 * c[e] * _deformation_square(vn, conn, X, Xc, Jinv, e)
 
 
 @njit_parallel
@@ -229,65 +309,81 @@ def _velocities(v, v_old, dt_avg, a, free):
 
 
 @njit
-def _kinetic_of(vn, conn, dX, Jinv, dc, idx):
+def _kinetic_of(vn, conn, X, Xc, Jinv, dc, idx):
     """sum over the elements idx (k,) of 1/2 dc_k |(I - P_e) vn_e|^2 [mJ] (``_kinetic`` for a few elements)."""
     total = 0.0
     for k in range(idx.shape[0]):
-        total += 0.5 * dc[k] * _deformation_square(vn, conn, dX, Jinv, idx[k])
+        total += 0.5 * dc[k] * _deformation_square(vn, conn, X, Xc, Jinv, idx[k])
     return total
 
 
-@njit
-def apply(p, m, conn, dX, Jinv, c, ptr, slots, ye, q):
-    """q = (M + dM) p over all dofs [N for p in mm/s^2]."""
-    _scaled(q, m, p)
-    element_added(p, conn, dX, Jinv, c, ye)
-    gather_add(ye, ptr, slots, q)
+@njit_parallel
+def _lumped(q, m, p):
+    """q = m p (row-wise)."""
+    for i in prange(q.shape[0]):
+        for j in range(3):
+            q[i, j] = m[i] * p[i, j]
+
+
+@njit_parallel
+def _add_into(q, y):
+    """q += y."""
+    for i in prange(q.shape[0]):
+        for j in range(3):
+            q[i, j] += y[i, j]
 
 
 @njit
-def solve(a, r, m, conn, dX, Jinv, c, ptr, slots, free, dinv, tol, max_it, ye, q, res, z, p, part):
+def apply(p, m, conn, X, Xc, Jinv, c, ptr, elems, rows, y, q):
+    """q = (M + dM) p over all dofs [N for p in mm/s^2] (y (n_node, 3) scratch)."""
+    element_rows(p, conn, X, Xc, Jinv, c, rows)
+    gather_added(rows, ptr, elems, X, p, y)
+    _lumped(q, m, p)
+    _add_into(q, y)
+
+
+@njit
+def solve(a, r, m, conn, X, Xc, Jinv, c, ptr, elems, free, dinv, tol, max_it, rows, q, res, z, p, part):
     """Conjugate gradients for (M + dM) a = r on the free dofs, a (n_node, 3) holding the warm start on the free
     dofs and the prescribed accelerations on the others (kept). Returns (iterations, relative residual).
 
     Stops when sqrt(res . D^-1 res) <= tol sqrt(rhs . D^-1 rhs) (rhs = r - dM a_c on the free dofs) or after
-    max_it iterations. Work arrays ye (n_el, 8, 3), q, res, z, p (n_node, 3), part (n_chunk,)."""
+    max_it iterations. Work arrays rows (n_el, ROW), q, res, z, p (n_node, 3), part (n_chunk,)."""
     # right-hand side norm: r - (M + dM) a_c on the free dofs, with a_c alone
-    prescribed = False
-    for i in range(a.shape[0]):
-        for j in range(3):
-            z[i, j] = a[i, j] * (1.0 - free[i, j])
-            prescribed = prescribed or z[i, j] != 0.0
-    if prescribed:
-        apply(z, m, conn, dX, Jinv, c, ptr, slots, ye, q)
+    if _prescribed(a, free, z) > 0:
+        apply(z, m, conn, X, Xc, Jinv, c, ptr, elems, rows, p, q)
     else:  # symmetry planes and fixed supports: (M + dM) 0 = 0, one element pass fewer per cycle
         q[...] = 0.0
-    for i in range(a.shape[0]):
-        for j in range(3):
-            res[i, j] = (r[i, j] - q[i, j]) * free[i, j]
-    ref = dot(res, res, dinv, part)
+    ref = _residual(r, q, free, dinv, res, part)
     if ref == 0.0:  # nothing drives the free dofs: they do not accelerate
         for i in range(a.shape[0]):
             for j in range(3):
                 a[i, j] *= 1.0 - free[i, j]
         return 0, 0.0
-    apply(a, m, conn, dX, Jinv, c, ptr, slots, ye, q)
-    for i in range(a.shape[0]):
-        for j in range(3):
-            res[i, j] = (r[i, j] - q[i, j]) * free[i, j]
-            p[i, j] = 0.0
-    rz = dot(res, res, dinv, part)
+    apply(a, m, conn, X, Xc, Jinv, c, ptr, elems, rows, p, q)
+    rz = _residual(r, q, free, dinv, res, part)
+    p[...] = 0.0
     it = 0
     beta = 0.0
     while rz > tol * tol * ref and it < max_it:  # four passes per iteration (fused kernels above)
         _direction(z, res, dinv, p, beta, q, m)
-        element_added(p, conn, dX, Jinv, c, ye)
-        alpha = rz / _gather_dot(ye, ptr, slots, q, p, free, part)
+        element_rows(p, conn, X, Xc, Jinv, c, rows)
+        alpha = rz / _gather_dot(rows, ptr, elems, X, q, p, free, part)
         rz_new = _step(a, res, p, q, free, alpha, dinv, part)
         beta = rz_new / rz
         rz = rz_new
         it += 1
     return it, np.sqrt(rz / ref)
+
+
+def projector_diagonal(dX: np.ndarray, Jinv: np.ndarray) -> np.ndarray:
+    """(k, 8, 3): the diagonal of I - P_e at each slot of k elements, from dX (k, 8, 3) [mm] and Jinv (k, 6):
+    1 - 1/n from the translations, less S_a Jinv S_a^T from the rotations (S_a = [dX_a]x)."""
+    J = Jinv[:, [0, 1, 2, 1, 3, 4, 2, 4, 5]].reshape(-1, 3, 3)
+    S = np.zeros(dX.shape + (3,))
+    S[..., 0, 1], S[..., 0, 2], S[..., 1, 2] = -dX[..., 2], dX[..., 1], -dX[..., 0]
+    S -= np.swapaxes(S, -1, -2)
+    return 1.0 - (1.0 / dX.shape[1] + np.einsum("eaij,ejk,eaik->eai", S, J, S))
 
 
 class SelectiveMass:
@@ -300,22 +396,28 @@ class SelectiveMass:
 
     def __init__(self, conns: list[np.ndarray], X: np.ndarray):
         n_node = len(X)
-        self.conn = np.ascontiguousarray(np.concatenate(conns), np.int64)
-        if self.conn.shape[1] != NODES:
-            raise ValueError(f"selective mass is built for {NODES}-node hexahedra, "
-                             f"not {self.conn.shape[1]}-node cells")
-        self.ptr, self.slots = node_slots(self.conn, n_node)
-        n_el, k = self.conn.shape
-        Xe = X[self.conn]
-        self.dX = Xe - Xe.mean(axis=1, keepdims=True)  # (n_el, 8, 3) [mm]
-        r2 = np.einsum("eai,eai->e", self.dX, self.dX)
-        J = r2[:, None, None] * np.eye(3) - np.einsum("eai,eaj->eij", self.dX, self.dX)
-        self.Jinv = np.linalg.inv(J)  # (n_el, 3, 3): rotations fitted to the reference positions
+        conn = np.concatenate(conns)
+        if conn.shape[1] != NODES:
+            raise ValueError(f"selective mass is built for {NODES}-node hexahedra, not {conn.shape[1]}-node cells")
+        # constants, read-only (so checkpoints skip them): int32 indices (half the bytes per iteration), reference
+        # positions about the model's centre (the rigid fit's cancellation scales with |X| / |dX|)
+        self.conn = np.ascontiguousarray(conn, np.int32)
+        ptr, slots = node_slots(self.conn, n_node)
+        self.ptr, self.elems = ptr, (slots // NODES).astype(np.int32)  # each node's slots as elements, slot order
+        self.X = np.ascontiguousarray(X - 0.5 * (X.min(axis=0) + X.max(axis=0)), float)
+        self.Xc = self.X[self.conn].mean(axis=1)  # (n_el, 3) [mm]
+        dX = self.X[self.conn] - self.Xc[:, None, :]
+        r2 = np.einsum("eai,eai->e", dX, dX)
+        Jinv = np.linalg.inv(r2[:, None, None] * np.eye(3) - np.einsum("eai,eaj->eij", dX, dX))
+        Jinv = 0.5 * (Jinv + np.swapaxes(Jinv, 1, 2))  # symmetric to round-off: its upper triangle
+        self.Jinv = np.ascontiguousarray(Jinv[:, [0, 0, 0, 1, 1, 2], [0, 1, 2, 1, 2, 2]])  # (n_el, 6) [1/mm^2]
+        for a in (self.conn, self.ptr, self.elems, self.X, self.Xc, self.Jinv):
+            a.flags.writeable = False
+        n_el = len(self.conn)
         self.c = np.zeros(n_el)
         self.free = np.ones((n_node, 3))
         self.dinv = np.ones((n_node, 3))
         self.diag = np.ones((n_node, 3))
-        self.q_diag = np.zeros((n_el, k, 3))
         self.m = np.ones(n_node)
         self.tol, self.max_it = 0.0, 0  # the step's (tolerance, cap): set by set_step, which activates
         self.active = False
@@ -323,7 +425,7 @@ class SelectiveMass:
         self.a_last = np.zeros((n_node, 3))  # the two cycles before (warm-start extrapolation)
         self.a_last2 = np.zeros((n_node, 3))
         self.g = np.zeros((n_node, 3))
-        self._work = [np.zeros((n_el, k, 3))] + [np.zeros((n_node, 3)) for _ in range(4)]
+        self._work = [np.zeros((n_el, ROW))] + [np.zeros((n_node, 3)) for _ in range(4)]
         self._part = np.zeros((n_node + CHUNK - 1) // CHUNK)
         self._ke = np.zeros(n_el)
         self._r = np.zeros((n_node, 3))
@@ -334,6 +436,18 @@ class SelectiveMass:
         self.capped = 0
         self.last_residual = 0.0
         self.ke_last = 0.0  # added kinetic energy at the last cycle that computed it [mJ]
+
+    def _complement_diagonal(self, idx=slice(None)) -> np.ndarray:
+        """(k, 8, 3) diagonal of I - P_e at the slots of the elements idx (all by default)."""
+        conn = self.conn[idx]
+        return projector_diagonal(self.X[conn] - self.Xc[idx][:, None, :], self.Jinv[idx])
+
+    def product(self, p: np.ndarray) -> np.ndarray:
+        """dM p (n_node, 3) [N] for p (n_node, 3) [mm/s^2]: the solve's own element rows and node sums."""
+        rows, y = np.zeros((len(self.conn), ROW)), np.zeros_like(p)
+        element_rows(p, self.conn, self.X, self.Xc, self.Jinv, self.c, rows)
+        gather_added(rows, self.ptr, self.elems, self.X, p, y)
+        return y
 
     def set_step(self, betas: list[np.ndarray] | None, element_mass: list[np.ndarray], m: np.ndarray,
                  free: np.ndarray, cg: tuple[float, int]) -> None:
@@ -346,14 +460,8 @@ class SelectiveMass:
         self.c[:] = np.concatenate([b * me / n for b, me in zip(betas, element_mass)])
         self.m = np.ascontiguousarray(m, float)
         self.free = np.ascontiguousarray(free, float)
-        # diagonal of P_e: 1/n from the translations, S_a Jinv S_a^T from the rotations (S_a = [dX_a]x)
-        S = np.zeros(self.dX.shape + (3,))
-        S[..., 0, 1], S[..., 0, 2], S[..., 1, 2] = -self.dX[..., 2], self.dX[..., 1], -self.dX[..., 0]
-        S -= np.swapaxes(S, -1, -2)
-        p_diag = 1.0 / n + np.einsum("eaij,ejk,eaik->eai", S, self.Jinv, S)
-        self.q_diag = 1.0 - p_diag  # (n_el, 8, 3) diagonal of I - P_e
-        self.diag = np.repeat(self.m[:, None], 3, axis=1)
-        np.add.at(self.diag, self.conn.ravel(), (self.c[:, None, None] * self.q_diag).reshape(-1, 3))
+        self.diag = np.repeat(self.m[:, None], 3, axis=1)  # the preconditioner: diagonal of M + dM
+        np.add.at(self.diag, self.conn.ravel(), (self.c[:, None, None] * self._complement_diagonal()).reshape(-1, 3))
         self.dinv = self.free / self.diag
         self.tol, self.max_it = float(cg[0]), int(cg[1])
 
@@ -364,11 +472,11 @@ class SelectiveMass:
         forming run, so a pass over every element here cost more than the rest of the stable-step update."""
         self.c[idx] += dc
         nodes = self.conn[idx]
-        np.add.at(self.diag, nodes.ravel(), (dc[:, None, None] * self.q_diag[idx]).reshape(-1, 3))
+        np.add.at(self.diag, nodes.ravel(), (dc[:, None, None] * self._complement_diagonal(idx)).reshape(-1, 3))
         touched = np.unique(nodes)
         self.dinv[touched] = self.free[touched] / self.diag[touched]
         self._vn[touched] = 0.5 * (v_old[touched] + v[touched])  # the only nodes _kinetic_of reads
-        return _kinetic_of(self._vn, self.conn, self.dX, self.Jinv, dc, idx)
+        return _kinetic_of(self._vn, self.conn, self.X, self.Xc, self.Jinv, dc, idx)
 
     def accelerate(self, v, v_old, f_ext, f_int, f_damp, dt_avg) -> None:
         """After the lumped kick and the constraints: a_c = (v - v_old) / dt_avg on prescribed dofs, a_f from the
@@ -381,14 +489,12 @@ class SelectiveMass:
         a0, a1, a2 = self.a, self.a_last, self.a_last2
         _start(a0, a1, a2, min(WARM_START_ORDER, self.cycles - 1), v, v_old, dt_avg, free, f_ext, f_int, f_damp, r)
         self.a, self.a_last, self.a_last2 = a2, a0, a1
-        ye, q, res, z, p = self._work
-        it, rel = solve(self.a, r, self.m, self.conn, self.dX, self.Jinv, self.c, self.ptr, self.slots, free,
-                        self.dinv, self.tol,
-                        self.max_it, ye, q, res, z, p, self._part)
+        rows, q, res, z, p = self._work
+        it, rel = solve(self.a, r, self.m, self.conn, self.X, self.Xc, self.Jinv, self.c, self.ptr, self.elems, free,
+                        self.dinv, self.tol, self.max_it, rows, q, res, z, p, self._part)
         _velocities(v, v_old, dt_avg, self.a, free)
-        element_added(self.a, self.conn, self.dX, self.Jinv, self.c, ye)
-        self.g.fill(0.0)
-        gather_add(ye, self.ptr, self.slots, self.g)
+        element_rows(self.a, self.conn, self.X, self.Xc, self.Jinv, self.c, rows)
+        gather_added(rows, self.ptr, self.elems, self.X, self.a, self.g)
         self.cycles += 1
         self.iterations += it
         self.max_iterations = max(self.max_iterations, it)
@@ -411,6 +517,6 @@ class SelectiveMass:
         fe_prev += self.g
         if kinetic or first:
             vn = v_old if first else 0.5 * (v_old + v)
-            _kinetic(vn, self.conn, self.dX, self.Jinv, self.c, self._ke)
+            _kinetic(vn, self.conn, self.X, self.Xc, self.Jinv, self.c, self._ke)
             self.ke_last = float(self._ke.sum())
         return self.ke_last
