@@ -173,20 +173,6 @@ def _total(part):
 
 
 @njit_parallel
-def dot(a, b, w, part):
-    """sum of a * b * w over (n_node, 3), by fixed chunks of CHUNK nodes summed serially (deterministic)."""
-    n = a.shape[0]
-    n_chunk = part.shape[0]
-    for k in prange(n_chunk):
-        s = 0.0
-        for i in range(k * CHUNK, min(n, (k + 1) * CHUNK)):
-            for j in range(3):
-                s += a[i, j] * b[i, j] * w[i, j]
-        part[k] = s
-    return _total(part)
-
-
-@njit_parallel
 def _direction(z, res, dinv, p, beta, q, m):
     """z = D^-1 res; p = z + beta p; q = m p (the lumped part of (M + dM) p): one pass over the nodes."""
     for i in prange(z.shape[0]):
@@ -325,21 +311,12 @@ def _lumped(q, m, p):
             q[i, j] = m[i] * p[i, j]
 
 
-@njit_parallel
-def _add_into(q, y):
-    """q += y."""
-    for i in prange(q.shape[0]):
-        for j in range(3):
-            q[i, j] += y[i, j]
-
-
 @njit
-def apply(p, m, conn, X, Xc, Jinv, c, ptr, elems, rows, y, q):
-    """q = (M + dM) p over all dofs [N for p in mm/s^2] (y (n_node, 3) scratch)."""
-    element_rows(p, conn, X, Xc, Jinv, c, rows)
-    gather_added(rows, ptr, elems, X, p, y)
+def apply(p, m, conn, X, Xc, Jinv, c, ptr, elems, rows, free, part, q):
+    """q = (M + dM) p over all dofs [N for p in mm/s^2] (the CG iteration's passes; the dot product unused)."""
     _lumped(q, m, p)
-    _add_into(q, y)
+    element_rows(p, conn, X, Xc, Jinv, c, rows)
+    _gather_dot(rows, ptr, elems, X, q, p, free, part)
 
 
 @njit
@@ -351,7 +328,7 @@ def solve(a, r, m, conn, X, Xc, Jinv, c, ptr, elems, free, dinv, tol, max_it, ro
     max_it iterations. Work arrays rows (n_el, ROW), q, res, z, p (n_node, 3), part (n_chunk,)."""
     # right-hand side norm: r - (M + dM) a_c on the free dofs, with a_c alone
     if _prescribed(a, free, z) > 0:
-        apply(z, m, conn, X, Xc, Jinv, c, ptr, elems, rows, p, q)
+        apply(z, m, conn, X, Xc, Jinv, c, ptr, elems, rows, free, part, q)
     else:  # symmetry planes and fixed supports: (M + dM) 0 = 0, one element pass fewer per cycle
         q[...] = 0.0
     ref = _residual(r, q, free, dinv, res, part)
@@ -360,7 +337,7 @@ def solve(a, r, m, conn, X, Xc, Jinv, c, ptr, elems, free, dinv, tol, max_it, ro
             for j in range(3):
                 a[i, j] *= 1.0 - free[i, j]
         return 0, 0.0
-    apply(a, m, conn, X, Xc, Jinv, c, ptr, elems, rows, p, q)
+    apply(a, m, conn, X, Xc, Jinv, c, ptr, elems, rows, free, part, q)
     rz = _residual(r, q, free, dinv, res, part)
     p[...] = 0.0
     it = 0
