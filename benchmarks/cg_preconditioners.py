@@ -8,7 +8,7 @@ preconditioned conjugate-gradient iterations to the engine's stopping rule (``en
 system the engine solved at that cycle (right-hand side (M + dM) a), from zero and from the linear extrapolation of
 the two cycles before, with:
 
-* the engine's diagonal (Jacobi);
+* the assembled diagonal (Jacobi; the engine's sums the slots' diagonals, which differs at prisms' repeated nodes);
 * two-level, additive (D^-1 + P A_c^-1 P^T) and as a symmetric V-cycle (damped Jacobi, coarse solve, damped Jacobi:
   three products per iteration), with a coarse space on aggregates of nodes (each node and its neighbours, greedy),
   of translations only or of the six rigid modes, plain or smoothed once (smoothed aggregation);
@@ -95,7 +95,7 @@ def aggregates(G: sp.csr_matrix) -> np.ndarray:
         if agg[i] < 0 and np.all(agg[nb] < 0):
             agg[nb] = k
             k += 1
-    for i in np.flatnonzero(agg < 0):
+    for i in np.flatnonzero(agg < 0):  # every node of an element has itself and neighbours in G
         nb = G.indices[G.indptr[i]:G.indptr[i + 1]]
         agg[i] = agg[nb[agg[nb] >= 0][0]]
     return agg
@@ -139,15 +139,27 @@ def main():
     guess = (2.0 * saved["a_last"] - saved["a_last2"]).ravel()[free]
     Ds = sp.diags(1 / np.sqrt(D))
     lam_max = spla.eigsh(Ds @ A @ Ds, k=1, which="LA", return_eigenvectors=False)[0]
-    lam_min = spla.eigsh(Ds @ A @ Ds, k=1, sigma=0, which="LM", return_eigenvectors=False)[0]
-    print(f"{A.shape[0]} free dofs, {len(s.conn)} elements; eigenvalues of D^-1 (M + dM) in "
-          f"[{lam_min:.4g}, {lam_max:.4g}]; tolerance {a.tol:g}; iterations from zero / from the extrapolation")
-    run = lambda apply_m: (pcg(A, b, D, apply_m, 0 * b, a.tol), pcg(A, b, D, apply_m, guess, a.tol))
-    print("  Jacobi (the engine's): %d / %d, one product per iteration" % run(lambda r: r / D))
+    lam, vec = spla.eigsh(Ds @ A @ Ds, k=1, sigma=0, which="LM")
     conn = np.asarray(s.conn, np.int64)
     n = len(s.X)
+    mode = np.zeros(3 * n)
+    mode[free] = vec[:, 0] / np.sqrt(D)
+    nodal = np.sort(np.einsum("ij,ij->i", mode.reshape(n, 3), mode.reshape(n, 3)))[::-1]
+    ratio = saved["c"] / saved["m"][conn].mean(axis=1)  # added mass per element over its nodes' mean mass
+    top = np.argmax(np.einsum("ij,ij->i", mode.reshape(n, 3), mode.reshape(n, 3)))
+    near = ratio[np.isin(conn, top).any(axis=1)]
+    print(f"{A.shape[0]} free dofs, {len(s.conn)} elements; eigenvalues of D^-1 (M + dM) in "
+          f"[{lam[0]:.4g}, {lam_max:.4g}]; the lowest mode has {nodal[:50].sum() / nodal.sum():.0%} of its norm "
+          f"on 50 nodes, its largest at a node whose elements' c_e are {near.min():.3g}-{near.max():.3g} x their "
+          f"nodes' mass; tolerance {a.tol:g}; iterations from zero / from the linear extrapolation of the two "
+          "cycles before (the engine's quadratic start needs a third)")
+    run = lambda apply_m: (pcg(A, b, D, apply_m, 0 * b, a.tol), pcg(A, b, D, apply_m, guess, a.tol))
+    print("  Jacobi (the assembled diagonal; the engine's differs at prisms' repeated nodes): %d / %d, one product "
+          "per iteration" % run(lambda r: r / D))
     G = sp.csr_matrix((np.ones(64 * len(conn)), (np.repeat(conn, 8, axis=1).ravel(), np.tile(conn, (1, 8)).ravel())),
                       shape=(n, n))
+    if np.any(np.diff(G.tocsr().indptr) == 0):
+        raise SystemExit("a node belongs to no hexahedron: aggregation needs every node in an element")
     agg = aggregates(G.tocsr())
     groups = [np.flatnonzero(agg == j) for j in range(agg.max() + 1)]
     omega = 1.0 / lam_max
@@ -166,9 +178,10 @@ def main():
             print(f"  two-level on {len(groups)} aggregates ({n / len(groups):.1f} nodes), {name}: additive "
                   "%d / %d, V-cycle %d / %d (three products per iteration)"
                   % (run(lambda r, coarse=coarse: r / D + coarse(r)) + run(vcycle)))
-    ratio = saved["c"] / saved["m"][conn].mean(axis=1)
     for above in (20.0, 5.0, 2.0):
         heavy = np.flatnonzero(ratio > above)
+        if not len(heavy):
+            continue
         E = sp.csr_matrix((np.ones(8 * len(heavy)), (np.repeat(np.arange(len(heavy)), 8), conn[heavy].ravel())),
                           shape=(len(heavy), n))
         k, label = connected_components(E @ E.T, directed=False)
