@@ -144,10 +144,10 @@ def main():
     n = len(s.X)
     mode = np.zeros(3 * n)
     mode[free] = vec[:, 0] / np.sqrt(D)
-    nodal = np.sort(np.einsum("ij,ij->i", mode.reshape(n, 3), mode.reshape(n, 3)))[::-1]
+    square = np.einsum("ij,ij->i", mode.reshape(n, 3), mode.reshape(n, 3))  # per node
+    nodal = np.sort(square)[::-1]
     ratio = saved["c"] / saved["m"][conn].mean(axis=1)  # added mass per element over its nodes' mean mass
-    top = np.argmax(np.einsum("ij,ij->i", mode.reshape(n, 3), mode.reshape(n, 3)))
-    near = ratio[np.isin(conn, top).any(axis=1)]
+    near = ratio[np.isin(conn, np.argmax(square)).any(axis=1)]
     print(f"{A.shape[0]} free dofs, {len(s.conn)} elements; eigenvalues of D^-1 (M + dM) in "
           f"[{lam[0]:.4g}, {lam_max:.4g}]; the lowest mode has {nodal[:50].sum() / nodal.sum():.0%} of its norm "
           f"on 50 nodes, its largest at a node whose elements' c_e are {near.min():.3g}-{near.max():.3g} x their "

@@ -204,8 +204,8 @@ def _gather_dot(rows, ptr, elems, X, q, p, free, part):
 
 @njit_parallel
 def _step(a, res, p, q, free, alpha, dinv, part):
-    """a += alpha p, res -= alpha q on the free dofs, and returns res . D^-1 res by chunks (as ``_axpy`` twice and
-    ``dot``, in one pass)."""
+    """a += alpha p, res -= alpha q on the free dofs, and returns res . D^-1 res by chunks (the two updates and
+    the weighted norm in one pass)."""
     n = a.shape[0]
     n_chunk = part.shape[0]
     for c in prange(n_chunk):
