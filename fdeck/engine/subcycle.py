@@ -147,7 +147,10 @@ def subset_recipe(build, name, section, X, conn, ids, kind, params, orient, rho,
     def make(sel: np.ndarray, label: str):
         # the orientation's own class (compile.orientation, which the engine does not import: one direction)
         o = type(orient)(orient.reference[sel], orient.warp_angle[sel], orient.normal)
-        g = build(f"{name}/{label}", section, X, conn[sel], ids[sel], kind, np.array(params[sel]), o, rho[sel], ctype)
+        rows = params[sel]  # the section's one row, kept a broadcast view as compile.problem builds it (laws such
+        # as fabric_hyper take their block path only for such a row)
+        g = build(f"{name}/{label}", section, X, conn[sel], ids[sel], kind, np.broadcast_to(rows[:1], rows.shape), o,
+                  rho[sel], ctype)
         g.element_index, g.section_index = idx[sel], section_index
         g.subset = sel  # (n_el,) its elements' indices in the section's elements of this cell type
         return g

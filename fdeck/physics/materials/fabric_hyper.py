@@ -328,7 +328,7 @@ def _modulus(g, q, J, iD, s, t1, t2, h, d):
 @njit
 def _element(F, frame, params, state, P, psi, modulus, e):
     """The points of element e (arrays as in ``evaluate``). A serial function of its own: inlined
-    straight into the ``prange`` body of ``evaluate``, ``point`` trips numba's parfor array analysis (numba 0.68:
+    straight into the ``prange`` body of ``evaluate_points``, ``point`` trips numba's parfor array analysis (numba 0.68:
     "Dimension mismatch" on its tuple unpacking). Keeps the ``prange`` body free of per-point array views; the
     calls to ``point`` pay their reference counting here, on one thread's own element."""
     for q in range(F.shape[1]):
@@ -337,10 +337,17 @@ def _element(F, frame, params, state, P, psi, modulus, e):
 
 
 @njit_parallel
-def evaluate(F, frame, params, state, P, psi, modulus):
-    """Array kernel; shapes in ``fdeck.registry.MaterialKind``."""
+def evaluate_points(F, frame, params, state, P, psi, modulus):
+    """Array kernel, one point at a time; shapes in ``fdeck.registry.MaterialKind``."""
     for e in prange(F.shape[0]):
         _element(F, frame, params, state, P, psi, modulus, e)
+
+
+def evaluate(F, frame, params, state, P, psi, modulus) -> None:
+    """Array kernel; shapes in ``fdeck.registry.MaterialKind``. A section's parameters (one broadcast row) take
+    the block path of ``fabric_hyper_blocks`` (the same bits, packed arithmetic), anything else ``evaluate_points``."""
+    if not fabric_hyper_blocks.evaluate(F, frame, params, state, P, psi, modulus):
+        evaluate_points(F, frame, params, state, P, psi, modulus)
 
 
 # ----------------------------------------------------------------------------------------------------------------
@@ -398,5 +405,8 @@ def smallest_acoustic(F: np.ndarray, frame: np.ndarray, params: np.ndarray, dire
         out[e] = np.linalg.eigvalsh(0.5 * (Q + Q.transpose(0, 2, 1))).min()
     return out
 
+
+# the block path reads this module's helpers, so it is imported once they exist
+from fdeck.physics.materials import fabric_hyper_blocks  # noqa: E402
 
 register_material(MaterialKind("fabric_hyper", pack, evaluate, point, 0, DIAGNOSTICS, diagnose))

@@ -1,0 +1,123 @@
+"""Requirement: fabric_hyper's block path (``fabric_hyper_blocks``: the point law over blocks of points, lanes
+innermost) gives the same bits as the point law (``fabric_hyper.point`` through ``evaluate_points``) for every
+energy form and every branch of each (stretch and compression, the two polynomial branches, the cubic and locking
+branches of in-plane shear, compaction, tables walked both ways, positive, negative and zero shear, an inverted
+point), with point counts that leave the last block partly empty; the section's broadcast parameters take it,
+anything else the point path; and a whole F-bar 3WEAVE run's history is the same bits with it on and off.
+
+Reference: the point law itself. Tolerance: zero, compared as bit patterns (every value is formed by the same
+operations in the same order; a last-bit difference, a signed zero or a different NaN would mean the block path
+computes something else)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import fdeck.cards.fabric_hyper as fc
+import fdeck.physics.materials.fabric_hyper as fh
+from fdeck.physics.materials import fabric_hyper_blocks as fb
+
+pytestmark = pytest.mark.verification
+
+# every form id once: tabulated (6) warp, quadratic (5) weft, compaction (4), locking shear (3), polynomial (1) and
+# two-branch polynomial (2) on the transverse shears; and the published 3WEAVE and interlock presets
+MIXED = dict(density=1e-9, compression_ratio=0.01,
+             warp={"form": "tabulated", "table": [[-0.05, -20.0], [0.0, 0.0], [0.01, 5.0], [0.03, 40.0]]},
+             weft={"form": "quadratic", "K": 300.0},
+             compaction={"form": "compaction", "K_comp": 0.01, "I0": -1.5, "p": 6.0},
+             in_plane_shear={"form": "locking_shear", "K_ps0": 0.4, "K_ps1": 0.07, "I0": 0.08},
+             transverse_shear_warp={"form": "polynomial", "coefficients": [0.0, 0.8, 0.5]},
+             transverse_shear_weft={"form": "two_branch_polynomial", "x0": 0.02, "below": [0.0, 2.0],
+                                    "above": [0.01, 1.0, 3.0]})
+CARDS = {"3weave": dict(preset="3weave"), "interlock": dict(preset="interlock"), "mixed": MIXED}
+
+
+def same_bits(a, b) -> bool:
+    """Equal to the last bit, signed zeros and NaN payloads included."""
+    a, b = np.ascontiguousarray(a, float), np.ascontiguousarray(b, float)
+    return a.shape == b.shape and np.array_equal(a.view(np.uint64), b.view(np.uint64))
+
+
+def points(n_el, n_qp, seed):
+    """F (n_el, n_qp, 3, 3) over the law's regimes, frames (n_el, 3, 3) rotated at random."""
+    rng = np.random.default_rng(seed)
+    F = np.eye(3) + 0.08 * rng.standard_normal((n_el, n_qp, 3, 3))
+    flat = F.reshape(-1, 3, 3)
+    flat[0::7] = np.eye(3)  # rest: zero strain and shear (the derivatives' x == 0 branch)
+    flat[1::7, 0, 0] = 0.97  # warp in compression
+    flat[2::7, :, 1] = [0.9, 0.6, 0.0]  # large in-plane shear, past the locking branch point
+    flat[3::7, 2, 2] = 0.35  # strong compaction
+    flat[4::7, :, 1] *= -1.0  # inverted (J < 0): the compaction invariant is NaN
+    q, _ = np.linalg.qr(rng.standard_normal((n_el, 3, 3)))
+    return F, np.ascontiguousarray(q.transpose(0, 2, 1))
+
+
+def run(path, F, frame, p):
+    n_el, n_qp = F.shape[:2]
+    P = np.full((n_el, n_qp, 3, 3), np.nan)
+    psi, modulus = np.full((n_el, n_qp), np.nan), np.full((n_el, n_qp, 3), np.nan)
+    params = np.broadcast_to(p, (n_el, len(p)))
+    if path == "blocks":
+        assert fb.evaluate(F, frame, params, np.zeros((n_el, n_qp, 0)), P, psi, modulus)
+    else:
+        fh.evaluate_points(F, frame, params, np.zeros((n_el, n_qp, 0)), P, psi, modulus)
+    return P, psi, modulus
+
+
+@pytest.mark.parametrize("name", sorted(CARDS))
+@pytest.mark.parametrize("n_el, n_qp", [(1, 1), (37, 8), (200, 1)])
+def test_block_path_is_the_point_law_bit_for_bit(name, n_el, n_qp):
+    p = fh.pack(fc.FabricHyper(type="fabric_hyper", **CARDS[name]))
+    F, frame = points(n_el, n_qp, seed=n_el)
+    fast, ref = run("blocks", F, frame, p), run("points", F, frame, p)
+    for a, b in zip(fast, ref):
+        assert same_bits(a, b)
+    # the cases above reach the branches they are meant to: NaN compaction where inverted, locking shear
+    assert np.isnan(ref[1].reshape(-1)[4::7]).all() or n_el * n_qp <= 4
+    assert np.isfinite(ref[1].reshape(-1)[0::7]).all()
+
+
+def test_only_a_broadcast_row_takes_the_block_path():
+    """Per-element parameter rows (not what a section compiles to) are left to the point path."""
+    p = fh.pack(fc.FabricHyper(type="fabric_hyper", preset="3weave"))
+    F, frame = points(5, 8, seed=1)
+    out = np.zeros((5, 8, 3, 3)), np.zeros((5, 8)), np.zeros((5, 8, 3))
+    rows = np.tile(p, (5, 1))
+    assert not fb.evaluate(F, frame, rows, np.zeros((5, 8, 0)), *out)
+    assert fb.evaluate(F, frame, np.broadcast_to(p, rows.shape), np.zeros((5, 8, 0)), *out)
+
+
+def test_a_run_on_the_block_path_gives_the_bits_of_the_point_path(monkeypatch):
+    """A whole run (an F-bar 3WEAVE strip sheared and compacted by its moving top face, 2 threads as the engine
+    runs): every history column and the final positions identical with the block path on and off."""
+    from fdeck.compile.problem import compile_deck
+    from fdeck.deck.model import Deck
+    from fdeck.engine import solver
+
+    data = {
+        "mesh": {"block": {"size": [20.0, 4.0, 2.5], "divisions": [10, 2, 3]}},
+        "materials": {"fabric": {"type": "3weave"}},
+        "sections": [{"material": "fabric", "formulation": "fbar"}],
+        "boundary": [{"type": "fixed", "nodes": "zmin"},
+                     {"type": "displacement", "nodes": "zmax", "dofs": ["x"], "value": 1.5},
+                     {"type": "displacement", "nodes": "zmax", "dofs": ["z"], "value": -0.8}],
+        "steps": [{"duration": 1e-3}],
+        "output": {"history_points": 50},
+    }
+
+    def run():
+        res = solver.run(compile_deck(Deck.model_validate(data)), solver.Sink())
+        assert res.status == "completed", res.message
+        return np.array(res.history), res.final_positions
+
+    taken = []
+    block_path = fb.evaluate
+    monkeypatch.setattr(fb, "evaluate", lambda *a: taken.append(block_path(*a)) or taken[-1])
+    fast_h, fast_x = run()
+    assert len(taken) > 100 and all(taken)  # every update of the run took the block path
+    monkeypatch.setattr(fb, "evaluate", lambda *a: False)
+    point_h, point_x = run()
+    assert same_bits(fast_h, point_h) and same_bits(fast_x, point_x)
+    # it did shear and compact: the top face moved 1.5 and -0.8 mm
+    assert fast_x[:, 2].max() < 2.5 - 0.79 and fast_x[:, 0].max() > 20.0 + 1.49
