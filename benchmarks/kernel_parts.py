@@ -64,15 +64,11 @@ def parts(form: str, mat: str, divisions, threads: int, selective: float | None 
     f = np.zeros_like(x)
     m = g.material
     out = {}
-    fb = g.full_blocks  # full and fbar run their kinematics and forces over blocks of elements (hex8_full_blocks)
     if form == "fbar":
-        out["kinematics_fbar"] = lambda: fb.kinematics_fbar(x, g.F, g.J, g.Fbar, g.Jbar, g.ratio)
+        out["kinematics_fbar"] = lambda: hex8.kinematics_fbar(x, g.conn, g.dN, g.w, g.F, g.J, g.Fbar, g.Jbar,
+                                                              g.ratio)
         out["law"] = lambda: m.evaluate(g.Fbar, g.frame, g.params, g.state, g.P, g.psi, g.modulus)
-        out["forces_fbar"] = lambda: fb.forces_fbar(g.F, g.J, g.Jbar, g.ratio, g.P, g.p, g.fe)
-    elif form == "full":
-        out["kinematics"] = lambda: fb.kinematics(x, g.F, g.J)
-        out["law"] = lambda: m.evaluate(g.F, g.frame, g.params, g.state, g.P, g.psi, g.modulus)
-        out["forces"] = lambda: fb.forces(g.P, g.fe)
+        out["forces_fbar"] = lambda: hex8.forces_fbar(g.F, g.J, g.Jbar, g.ratio, g.P, g.dN, g.w, g.p, g.fe)
     else:
         out["kinematics"] = lambda: hex8.kinematics(x, g.conn, g.dN, g.F, g.J)
         out["law"] = lambda: m.evaluate(g.F, g.frame, g.params, g.state, g.P, g.psi, g.modulus)

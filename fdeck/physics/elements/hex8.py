@@ -22,7 +22,7 @@ import numpy as np
 
 from fdeck.compile.errors import CompileError
 from fdeck.engine.ledger import DISSIPATED, STORED, Term
-from fdeck.physics.elements import diagnostics, hex8_blocks, hex8_full_blocks
+from fdeck.physics.elements import diagnostics, hex8_blocks
 from fdeck.jit import njit_inline, njit_parallel, prange
 from fdeck.registry import FormulationKind, register_formulation
 
@@ -496,12 +496,6 @@ class Hex8Group:
         # reduced + linear_elastic: the same update fused and vectorised over blocks of elements (same bits)
         self.blocks = (hex8_blocks.Blocks(self.conn, self.b, self.V0, self.gamma, self.k_hg, self.c_hg, params)
                        if hex8_blocks.eligible(formulation, material, params) else None)
-        # full and fbar: the kinematics and forces over blocks of elements (same bits), for this class's own update;
-        # the gradients are then kept in the block layout only (see the ``dN`` property)
-        self.full_blocks = (hex8_full_blocks.Blocks(self.conn, self.dN, self.w)
-                            if not reduced and type(self).update is Hex8Group.update else None)
-        if self.full_blocks is not None:
-            self.dN = None
         # hourglass springs in the stable step: a mode u_a = gamma_a has omega^2 = k |gamma|^2 / m_a with
         # m_a = rho V0 / 8, i.e. rho (c/L)^2 = rho omega^2 / 4 = 2 k max|gamma|^2 / V0
         self.dt_extra = 2.0 * self.k_hg * np.einsum("ema,ema->em", self.gamma, self.gamma).max(axis=1) / self.V0
@@ -511,16 +505,6 @@ class Hex8Group:
             if hourglass.type == "viscous":
                 self.terms += (Term("hourglass_dissipation", DISSIPATED, rate=True),)
 
-    @property
-    def dN(self):
-        """(n_el, n_qp, 8, 3) shape-function gradients at the points [1/mm]. A group on the block passes keeps only
-        their block copy (1 536 B per element less); this then rebuilds the engine layout (tests, benchmarks)."""
-        return self._dN if self._dN is not None else self.full_blocks.gradients()
-
-    @dN.setter
-    def dN(self, value):
-        self._dN = value
-
     # -- per cycle ---------------------------------------------------------------------------------
     def update(self, x, v):
         """Kinematics, material, element forces at positions x (n_node, 3), velocities v (n_node, 3)."""
@@ -528,16 +512,7 @@ class Hex8Group:
         if self.blocks is not None:
             self.blocks.update(x, v, self.F, self.P, self.fe, self.psi, self.J, self.modulus, self.e_hg, self.p_hg)
             return
-        fb = self.full_blocks
-        if fb is not None and self.formulation == "fbar":
-            fb.kinematics_fbar(x, self.F, self.J, self.Fbar, self.Jbar, self.ratio)
-            m.evaluate(self.Fbar, self.frame, self.params, self.state, self.P, self.psi, self.modulus)
-            fb.forces_fbar(self.F, self.J, self.Jbar, self.ratio, self.P, self.p, self.fe)
-        elif fb is not None:
-            fb.kinematics(x, self.F, self.J)
-            m.evaluate(self.F, self.frame, self.params, self.state, self.P, self.psi, self.modulus)
-            fb.forces(self.P, self.fe)
-        elif self.formulation == "fbar":
+        if self.formulation == "fbar":
             kinematics_fbar(x, self.conn, self.dN, self.w, self.F, self.J, self.Fbar, self.Jbar, self.ratio)
             m.evaluate(self.Fbar, self.frame, self.params, self.state, self.P, self.psi, self.modulus)
             forces_fbar(self.F, self.J, self.Jbar, self.ratio, self.P, self.dN, self.w, self.p, self.fe)
