@@ -300,12 +300,20 @@ def point(F, frame, params, state, P):
 
 
 @njit_parallel
-def evaluate(F, frame, params, state, P, psi, modulus):
-    """Array kernel; shapes in ``fdeck.registry.MaterialKind``."""
+def evaluate_points(F, frame, params, state, P, psi, modulus):
+    """Array kernel, one point at a time; shapes in ``fdeck.registry.MaterialKind``."""
     for e in prange(F.shape[0]):
         for q in range(F.shape[1]):
             psi[e, q], modulus[e, q, 0], modulus[e, q, 1], modulus[e, q, 2] = point(
                 F[e, q], frame[e], params[e], state[e, q], P[e, q])
+
+
+def evaluate(F, frame, params, state, P, psi, modulus) -> None:
+    """Array kernel; shapes in ``fdeck.registry.MaterialKind``. A section's parameters (one broadcast row) take
+    the block path of ``fabric_membrane_blocks`` (the same bits, packed arithmetic), anything else
+    ``evaluate_points``."""
+    if not fabric_membrane_blocks.evaluate(F, frame, params, state, P, psi, modulus):
+        evaluate_points(F, frame, params, state, P, psi, modulus)
 
 
 DIAGNOSTICS = ("shear_angle", "warp_strain", "weft_strain", "warp_x", "warp_y", "warp_z", "weft_x", "weft_y",
@@ -329,6 +337,9 @@ def diagnose(F, frame, params):
     out[9], out[10], out[11], out[12], out[13], out[14] = p1, p2, phi, f1, f2, tau
     return out
 
+
+# the block path reads this module's helpers, so it is imported once they exist
+from fdeck.physics.materials import fabric_membrane_blocks  # noqa: E402
 
 register_material(MaterialKind("fabric_membrane", pack, evaluate, point, 0, DIAGNOSTICS, diagnose,
                                plane_stress=True))
