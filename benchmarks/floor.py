@@ -10,7 +10,7 @@ The floor of a kernel is max(bytes / bandwidth, flops / flop rate) per element-c
 * flop rate: independent chains of multiply-add held in registers, compiled with fdeck's own flags (no fastmath, so
   LLVM does not fuse them into FMA instructions), 1 and 2 threads; the assembly is searched for packed ``ymm``/``zmm``
   arithmetic to say whether LLVM vectorised it; sixteen chains in scalar registers (which LLVM leaves scalar, also
-  checked in the assembly) give the scalar rate beside it, since the kernels' point code is scalar today;
+  checked in the assembly) give the scalar rate beside it, since most element passes are scalar code;
 * bytes per element-cycle: the compulsory traffic of the algorithm as stored today (``compulsory_bytes``): the
   per-element reference data each cycle must read, the element's state read and written, and per node (shared by
   the elements around it, so counted once per node and spread over the elements) the positions, velocities and

@@ -1,4 +1,5 @@
-"""fabric_hyper's point law over blocks of ``LANES`` points with the lanes innermost, so that LLVM packs it (AVX2).
+"""fabric_hyper's point law over blocks of ``LANES`` points with the lanes innermost, so that LLVM packs it
+(AVX2/AVX-512).
 
 ``fabric_hyper.point`` takes one point at a time: about 300 scalar flops, three ``log``, a ``pow`` and a dozen
 divisions and square roots, 100-110 ns per point on this machine, 70 % of an F-bar 3WEAVE cycle (docs/kernels.md,
@@ -8,7 +9,12 @@ and divisions included, which pack as ``vsqrtpd``/``vdivpd``); the logarithms an
 without a vector maths library, are scalar loops of their own; each energy form is chosen once per block (the form
 ids are one row for the whole section), not per point. Every value is formed by the same operations in the same
 order as ``fabric_hyper.point`` (the modulus by the same inlined ``_modulus``), so the two give the same bits
-(``tests/test_fabric_hyper_blocks.py``) and a deck's results do not depend on which path ran.
+(``tests/test_fabric_hyper_blocks.py``) and a deck's results do not depend on which path ran. One exception, at
+degenerate points only: where both paths give NaN (an inverted or flattened element, an infinite stretch), the NaN's
+sign bit may differ (a positive ``math.nan`` meeting a negative NaN of 0 * inf in ``_modulus``, whose operands
+LLVM may order differently in packed and scalar code); the engine stops a run at such a point. With Intel's SVML
+present (``numba.config.USING_SVML``), LLVM would pack the log/pow loops with its vector maths, whose last bits are
+not libm's: the block path is then not taken.
 
 Shapes: F and P (n_el, n_qp, 3, 3), frame (n_el, 3, 3), prm (PARAMS.size,) the section's one parameter row, psi
 (n_el, n_qp) [MPa], modulus (n_el, n_qp, 3) [MPa]; the points are taken in (element, point) order, the last block
@@ -19,6 +25,7 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 
 from fdeck.jit import njit_inline, njit_parallel, prange
@@ -26,7 +33,7 @@ from fdeck.physics.materials.fabric_hyper import BLOCK, PARAMS, _modulus, _poly,
 
 LANES = 64
 """Points per block: the loop vectoriser packs lane loops of 64 (shorter ones are unrolled and left scalar, numba
-ships LLVM's SLP vectoriser off; docs/kernels.md item 6). A block's work array is 76 x 64 doubles, 39 KB."""
+ships LLVM's SLP vectoriser off; docs/kernels.md item 6). A block's work array is 77 x 64 doubles, 39 KB."""
 
 # rows of the work array: F[i, j] and frame[i, j] at 3 i + j; a_i[k] at A + 3 i + k; g = (g11, g22, g33, g12, g13,
 # g23); q = 1/|a_i|; the six invariants (e1, e2, c, s, t1, t2); per mode psi_k, psi_k', psi_k''; P[i, j] at 3 i + j;
@@ -38,8 +45,9 @@ ROWS = 77
 
 def evaluate(F, frame, params, state, P, psi, modulus) -> bool:
     """The block path when the section's parameters are one broadcast row (stride 0, as ``compile.problem``
-    builds them); returns False (nothing done) otherwise, for the caller to take the point path."""
-    if params.shape[0] == 0 or params.strides[0] != 0:
+    builds them), the arrays are contiguous and SVML is absent (module docstring); returns False (nothing done)
+    otherwise, for the caller to take the point path."""
+    if params.shape[0] == 0 or params.strides[0] != 0 or numba.config.USING_SVML:
         return False
     if not (F.flags.c_contiguous and P.flags.c_contiguous and psi.flags.c_contiguous
             and modulus.flags.c_contiguous):  # (the reshapes below must be views, not copies)

@@ -6,7 +6,9 @@ angle take about 17 ns (table walks and kink rounding, per point a different bra
 fibre kinematics, the stress and the step moduli (docs/kernels.md item 11). Here that arithmetic runs as lane loops
 over the rows of one work array, packed; the curves and the ``asin`` stay scalar, one lane after another, through
 the same inlined helpers as the point law. Every value is formed by the same operations in the same order as
-``fabric_membrane.point``, so the two give the same bits (``tests/test_fabric_membrane_blocks.py``).
+``fabric_membrane.point``, so the two give the same bits (``tests/test_fabric_membrane_blocks.py``); as in
+``fabric_hyper_blocks``, a NaN at a degenerate point may differ in its sign bit, and with SVML present the block
+path is not taken (its vector ``asin`` would not be libm's).
 
 Shapes: F and P (n_pt, n_qp, 3, 3), frame (n_pt, 3, 3), prm (PARAMS.size,) the section's one parameter row, psi
 (n_pt, n_qp) [MPa], modulus (n_pt, n_qp, 3) [MPa]; points taken in order, the last block padded by repeating the
@@ -17,6 +19,7 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 
 from fdeck.jit import njit_inline, njit_parallel, prange
@@ -34,8 +37,9 @@ ROWS = 52
 
 def evaluate(F, frame, params, state, P, psi, modulus) -> bool:
     """The block path when the section's parameters are one broadcast row (stride 0, as the compiler and the shells
-    build them) and the arrays are contiguous; returns False (nothing done) otherwise, for the point path."""
-    if params.shape[0] == 0 or params.strides[0] != 0:
+    build them), the arrays are contiguous and SVML is absent; returns False (nothing done) otherwise, for the point
+    path."""
+    if params.shape[0] == 0 or params.strides[0] != 0 or numba.config.USING_SVML:
         return False
     if not (F.flags.c_contiguous and P.flags.c_contiguous and psi.flags.c_contiguous
             and modulus.flags.c_contiguous):  # (the reshapes below must be views, not copies)
