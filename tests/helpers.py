@@ -127,3 +127,12 @@ def run_once_per_session(tmp_path_factory, name: str, deck: Path, timeout: float
                                timeout=timeout)
             record.write_text(json.dumps({"returncode": r.returncode, "stdout": r.stdout, "stderr": r.stderr}))
     return folder, SimpleNamespace(**json.loads(record.read_text()))
+
+
+def same_bits_where_not_nan(a, b) -> bool:
+    """Equal to the last bit (signed zeros included) where a is not NaN, and NaN at the same places (a NaN's sign
+    and payload not compared): the block paths' promise against the point laws (``fabric_hyper_blocks``)."""
+    a, b = np.ascontiguousarray(a, float), np.ascontiguousarray(b, float)
+    nan = np.isnan(a)
+    return (a.shape == b.shape and np.array_equal(nan, np.isnan(b))
+            and np.array_equal(a[~nan].view(np.uint64), b[~nan].view(np.uint64)))

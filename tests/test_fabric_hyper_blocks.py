@@ -20,6 +20,8 @@ import fdeck.cards.fabric_hyper as fc
 import fdeck.physics.materials.fabric_hyper as fh
 from fdeck.physics.materials import fabric_hyper_blocks as fb
 
+from helpers import same_bits_where_not_nan
+
 pytestmark = pytest.mark.verification
 
 # tabulated (6) warp and compaction (the latter walked both ways: c < 0 and c > 0), quadratic (5) weft, locking
@@ -34,14 +36,6 @@ MIXED = dict(density=1e-9, compression_ratio=0.01,
              transverse_shear_weft={"form": "two_branch_polynomial", "x0": 0.02, "below": [0.0, 2.0],
                                     "above": [0.01, 1.0, 3.0]})
 CARDS = {"3weave": dict(preset="3weave"), "interlock": dict(preset="interlock"), "mixed": MIXED}
-
-
-def same_bits(a, b) -> bool:
-    """Equal to the last bit (signed zeros included) where not NaN, and NaN at the same places."""
-    a, b = np.ascontiguousarray(a, float), np.ascontiguousarray(b, float)
-    nan = np.isnan(a)
-    return (a.shape == b.shape and np.array_equal(nan, np.isnan(b))
-            and np.array_equal(a[~nan].view(np.uint64), b[~nan].view(np.uint64)))
 
 
 def points(n_el, n_qp, seed):
@@ -87,7 +81,7 @@ def test_block_path_is_the_point_law_bit_for_bit(name, n_el, n_qp):
     F, frame = points(n_el, n_qp, seed=n_el)
     fast, ref = run("blocks", F, frame, p), run("points", F, frame, p)
     for a, b in zip(fast, ref):
-        assert same_bits(a, b)
+        assert same_bits_where_not_nan(a, b)
     # the cases above reach the branches they are meant to (invariants from the point law's diagnostics)
     psi = ref[1].reshape(-1)
     assert np.isfinite(psi[0::7]).all() and psi[0] == 0.0  # rest, zero shear exactly
@@ -142,6 +136,6 @@ def test_a_run_on_the_block_path_gives_the_bits_of_the_point_path(monkeypatch):
     assert len(taken) > 100 and all(taken)  # every update of the run took the block path
     monkeypatch.setattr(fb, "evaluate", lambda *a: False)
     point_h, point_x = run()
-    assert same_bits(fast_h, point_h) and same_bits(fast_x, point_x)
+    assert same_bits_where_not_nan(fast_h, point_h) and same_bits_where_not_nan(fast_x, point_x)
     # it did shear and compact: the top face moved 1.5 and -0.8 mm
     assert fast_x[:, 2].max() < 2.5 - 0.79 and fast_x[:, 0].max() > 20.0 + 1.49

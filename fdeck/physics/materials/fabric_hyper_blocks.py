@@ -25,37 +25,26 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
 from fdeck.jit import njit_inline, njit_parallel, prange
+from fdeck.physics.materials import blocks
 from fdeck.physics.materials.fabric_hyper import BLOCK, PARAMS, _modulus, _poly, _tabulated
 
-LANES = 64
-"""Points per block: the loop vectoriser packs lane loops of 64 (shorter ones are unrolled and left scalar, numba
-ships LLVM's SLP vectoriser off; docs/kernels.md item 6). A block's work array is 77 x 64 doubles, 39 KB."""
+LANES = blocks.LANES
 
 # rows of the work array: F[i, j] and frame[i, j] at 3 i + j; a_i[k] at A + 3 i + k; g = (g11, g22, g33, g12, g13,
 # g23); q = 1/|a_i|; the six invariants (e1, e2, c, s, t1, t2); per mode psi_k, psi_k', psi_k''; P[i, j] at 3 i + j;
-# the point's energy and three moduli; X, U two scratch rows (a form's argument, a power)
+# the point's energy and three moduli; X, U two scratch rows (a form's argument, a power). 39 KB per block.
 F_ROW, FR_ROW, A_ROW, G_ROW, Q_ROW, J_ROW, ID_ROW, I_ROW = 0, 9, 18, 27, 33, 36, 37, 38
 PSI_ROW, D_ROW, H_ROW, P_ROW, OUT_ROW, X_ROW, U_ROW = 44, 50, 56, 62, 71, 75, 76
 ROWS = 77
 
 
 def evaluate(F, frame, params, state, P, psi, modulus) -> bool:
-    """The block path when the section's parameters are one broadcast row (stride 0, as ``compile.problem``
-    builds them), the arrays are contiguous and SVML is absent (module docstring); returns False (nothing done)
-    otherwise, for the caller to take the point path."""
-    if params.shape[0] == 0 or params.strides[0] != 0 or numba.config.USING_SVML:
-        return False
-    if not (F.flags.c_contiguous and P.flags.c_contiguous and psi.flags.c_contiguous
-            and modulus.flags.c_contiguous):  # (the reshapes below must be views, not copies)
-        return False
-    n_qp = F.shape[1]
-    evaluate_blocks(F.reshape(-1, 3, 3), frame, n_qp, params[0], P.reshape(-1, 3, 3), psi.reshape(-1),
-                    modulus.reshape(-1, 3))
-    return True
+    """The block path where ``blocks.run`` allows it (a section's broadcast parameter row, contiguous arrays, no
+    SVML); returns False (nothing done) otherwise, for the caller to take the point path."""
+    return blocks.run(evaluate_blocks, F, frame, params, P, psi, modulus)
 
 
 @njit_parallel
@@ -65,13 +54,7 @@ def evaluate_blocks(F, frame, n_qp, prm, P, psi, modulus):
     n = F.shape[0]
     for blk in prange((n + LANES - 1) // LANES):
         w = np.empty((ROWS, LANES))
-        for l in range(LANES):  # gather: scalar loads
-            p = min(blk * LANES + l, n - 1)
-            e = p // n_qp
-            for i in range(3):
-                for j in range(3):
-                    w[F_ROW + 3 * i + j, l] = F[p, i, j]
-                    w[FR_ROW + 3 * i + j, l] = frame[e, i, j]
+        blocks.gather(w, F, frame, n_qp, blk, F_ROW, FR_ROW)
         _kinematics(w)
         _invariants(w)
         _stretch(w, prm, 0)
@@ -84,17 +67,7 @@ def evaluate_blocks(F, frame, n_qp, prm, P, psi, modulus):
         _even(w, prm, 5)
         _stress(w)
         _moduli(w)
-        for l in range(LANES):  # back to the engine's layout
-            p = blk * LANES + l
-            if p >= n:
-                break
-            for i in range(3):
-                for j in range(3):
-                    P[p, i, j] = w[P_ROW + 3 * i + j, l]
-            psi[p] = w[OUT_ROW, l]
-            modulus[p, 0] = w[OUT_ROW + 1, l]
-            modulus[p, 1] = w[OUT_ROW + 2, l]
-            modulus[p, 2] = w[OUT_ROW + 3, l]
+        blocks.scatter(w, P, psi, modulus, blk, P_ROW, OUT_ROW)
 
 
 @njit_inline

@@ -290,13 +290,21 @@ def point(F, frame, params, state, P):
         b2 = w12 * a1[row] + w22 * a2[row]
         for col in range(3):
             P[row, col] = b1 * frame[0, col] + b2 * frame[1, col]
-    # stable-step moduli, with the step slopes (largest of the neighbouring segments, see _curve)
+    m1, m2, second = _moduli(i1, i2, s, c, r, f1, k1, f2, k2, tau, kt, params[PARAMS.floor],
+                             params[PARAMS.floor + 1])
+    return p1 + p2 + phi, m1, m2, second
+
+
+@_inline
+def _moduli(i1, i2, s, c, r, f1, k1, f2, k2, tau, kt, floor1, floor2):
+    """The stable-step moduli (m1, m2, second) of ``point`` (its docstring), with the step slopes k1, k2, kt (largest
+    of the neighbouring segments, see ``_curve``) and the families' floors; r = 1/sqrt(I1 I2)."""
     inv_max = max(1.0 / i1, 1.0 / i2)
     kk = max(kt, 0.0) * (1.0 + abs(s))
     second = abs(tau) * ((1.1547005383792517 * inv_max + r) / c + abs(s) * (1.0 + abs(s)) * inv_max / (c * c))
-    m1 = max(max(k1, 0.0) * i1 + abs(f1) + kk / i1 + second, params[PARAMS.floor])
-    m2 = max(max(k2, 0.0) * i2 + abs(f2) + kk / i2 + second, params[PARAMS.floor + 1])
-    return p1 + p2 + phi, m1, m2, second
+    m1 = max(max(k1, 0.0) * i1 + abs(f1) + kk / i1 + second, floor1)
+    m2 = max(max(k2, 0.0) * i2 + abs(f2) + kk / i2 + second, floor2)
+    return m1, m2, second
 
 
 @njit_parallel

@@ -19,35 +19,25 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
 from fdeck.jit import njit_inline, njit_parallel, prange
-from fdeck.physics.materials.fabric_membrane import PARAMS, _fibre, _shear
+from fdeck.physics.materials import blocks
+from fdeck.physics.materials.fabric_membrane import PARAMS, _fibre, _moduli, _shear
 
-LANES = 64
-"""Points per block (lane loops of 64 are what numba's LLVM packs; docs/kernels.md item 6); 52 rows, 27 KB."""
+LANES = blocks.LANES
 
 # rows: F[i, j] and frame[i, j] at 3 i + j; a1, a2; I1, I2, I12; s, c, s0; per family f, psi, step slope and the
-# shear's tau, Phi, step slope; P[i, j] at 3 i + j; the point's energy and three moduli
+# shear's tau, Phi, step slope; P[i, j] at 3 i + j; the point's energy and three moduli. 27 KB per block.
 F_ROW, FR_ROW, A_ROW, I_ROW, S_ROW, C_ROW, S0_ROW = 0, 9, 18, 24, 27, 28, 29
 F1_ROW, F2_ROW, T_ROW, P_ROW, OUT_ROW = 30, 33, 36, 39, 48
 ROWS = 52
 
 
 def evaluate(F, frame, params, state, P, psi, modulus) -> bool:
-    """The block path when the section's parameters are one broadcast row (stride 0, as the compiler and the shells
-    build them), the arrays are contiguous and SVML is absent; returns False (nothing done) otherwise, for the point
-    path."""
-    if params.shape[0] == 0 or params.strides[0] != 0 or numba.config.USING_SVML:
-        return False
-    if not (F.flags.c_contiguous and P.flags.c_contiguous and psi.flags.c_contiguous
-            and modulus.flags.c_contiguous):  # (the reshapes below must be views, not copies)
-        return False
-    n_qp = F.shape[1]
-    evaluate_blocks(F.reshape(-1, 3, 3), frame, n_qp, params[0], P.reshape(-1, 3, 3), psi.reshape(-1),
-                    modulus.reshape(-1, 3))
-    return True
+    """The block path where ``blocks.run`` allows it (a section's broadcast parameter row, contiguous arrays, no
+    SVML); returns False (nothing done) otherwise, for the caller to take the point path."""
+    return blocks.run(evaluate_blocks, F, frame, params, P, psi, modulus)
 
 
 @njit_parallel
@@ -56,27 +46,11 @@ def evaluate_blocks(F, frame, n_qp, prm, P, psi, modulus):
     n = F.shape[0]
     for blk in prange((n + LANES - 1) // LANES):
         w = np.empty((ROWS, LANES))
-        for l in range(LANES):  # gather: scalar loads
-            p = min(blk * LANES + l, n - 1)
-            e = p // n_qp
-            for i in range(3):
-                for j in range(3):
-                    w[F_ROW + 3 * i + j, l] = F[p, i, j]
-                    w[FR_ROW + 3 * i + j, l] = frame[e, i, j]
+        blocks.gather(w, F, frame, n_qp, blk, F_ROW, FR_ROW)
         _kinematics(w)
         _curves(w, prm)
         _stress_and_moduli(w, prm)
-        for l in range(LANES):  # back to the engine's layout
-            p = blk * LANES + l
-            if p >= n:
-                break
-            for i in range(3):
-                for j in range(3):
-                    P[p, i, j] = w[P_ROW + 3 * i + j, l]
-            psi[p] = w[OUT_ROW, l]
-            modulus[p, 0] = w[OUT_ROW + 1, l]
-            modulus[p, 1] = w[OUT_ROW + 2, l]
-            modulus[p, 2] = w[OUT_ROW + 3, l]
+        blocks.scatter(w, P, psi, modulus, blk, P_ROW, OUT_ROW)
 
 
 @njit_inline
@@ -121,7 +95,8 @@ def _curves(w, prm):
 
 @njit_inline
 def _stress_and_moduli(w, prm):
-    """P = sum_ij W_ij a_i x m_j, psi and the step moduli, as ``fabric_membrane.point``."""
+    """P = sum_ij W_ij a_i x m_j, psi and the step moduli (by the point law's own ``_moduli``), as
+    ``fabric_membrane.point``."""
     floor1, floor2 = prm[PARAMS.floor], prm[PARAMS.floor + 1]
     for l in range(LANES):
         i1, i2, s, c = w[I_ROW, l], w[I_ROW + 1, l], w[S_ROW, l], w[C_ROW, l]
@@ -138,10 +113,8 @@ def _stress_and_moduli(w, prm):
             b2 = w12 * ar + w22 * br
             for col in range(3):
                 w[P_ROW + 3 * row + col, l] = b1 * w[FR_ROW + col, l] + b2 * w[FR_ROW + 3 + col, l]
-        inv_max = max(1.0 / i1, 1.0 / i2)
-        kk = max(kt, 0.0) * (1.0 + abs(s))
-        second = abs(tau) * ((1.1547005383792517 * inv_max + r) / c + abs(s) * (1.0 + abs(s)) * inv_max / (c * c))
         w[OUT_ROW, l] = w[F1_ROW + 1, l] + w[F2_ROW + 1, l] + w[T_ROW + 1, l]
-        w[OUT_ROW + 1, l] = max(max(k1, 0.0) * i1 + abs(f1) + kk / i1 + second, floor1)
-        w[OUT_ROW + 2, l] = max(max(k2, 0.0) * i2 + abs(f2) + kk / i2 + second, floor2)
+        m1, m2, second = _moduli(i1, i2, s, c, r, f1, k1, f2, k2, tau, kt, floor1, floor2)
+        w[OUT_ROW + 1, l] = m1
+        w[OUT_ROW + 2, l] = m2
         w[OUT_ROW + 3, l] = second
