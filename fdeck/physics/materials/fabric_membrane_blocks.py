@@ -10,9 +10,9 @@ the same inlined helpers as the point law. Every value is formed by the same ope
 ``fabric_hyper_blocks``, a NaN at a degenerate point may differ in its sign bit, and with SVML present the block
 path is not taken (its vector ``asin`` would not be libm's).
 
-Shapes: F and P (n_pt, n_qp, 3, 3), frame (n_pt, 3, 3), prm (PARAMS.size,) the section's one parameter row, psi
-(n_pt, n_qp) [MPa], modulus (n_pt, n_qp, 3) [MPa]; points taken in order, the last block padded by repeating the
-last point (its results are not written).
+Shapes as ``fabric_membrane.evaluate`` takes them: F and P (n, n_qp, 3, 3) (a shell's corners by its levels), frame
+(n, 3, 3), prm (PARAMS.size,) the section's one parameter row, psi (n, n_qp) [MPa], modulus (n, n_qp, 3) [MPa]; the
+points taken in order, the last block padded by repeating the last point (its results are not written).
 """
 
 from __future__ import annotations
