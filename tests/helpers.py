@@ -136,3 +136,24 @@ def same_bits_where_not_nan(a, b) -> bool:
     nan = np.isnan(a)
     return (a.shape == b.shape and np.array_equal(nan, np.isnan(b))
             and np.array_equal(a[~nan].view(np.uint64), b[~nan].view(np.uint64)))
+
+
+def runs_with_and_without(monkeypatch, module, data: dict):
+    """Run the deck ``data`` through the solver twice: first with ``module.evaluate`` (a law's block path) as it is,
+    recording whether each call took it, then with it declining every call (the point path).
+    -> (taken: list of bool, (history, final positions) with it, the same without it)."""
+    from fdeck.compile.problem import compile_deck
+    from fdeck.deck.model import Deck
+    from fdeck.engine import solver
+
+    def run():
+        res = solver.run(compile_deck(Deck.model_validate(data)), solver.Sink())
+        assert res.status == "completed", res.message
+        return np.array(res.history), res.final_positions
+
+    taken = []
+    block_path = module.evaluate
+    monkeypatch.setattr(module, "evaluate", lambda *a: taken.append(block_path(*a)) or taken[-1])
+    with_path = run()
+    monkeypatch.setattr(module, "evaluate", lambda *a: False)
+    return taken, with_path, run()

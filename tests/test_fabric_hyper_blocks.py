@@ -20,7 +20,7 @@ import fdeck.cards.fabric_hyper as fc
 import fdeck.physics.materials.fabric_hyper as fh
 from fdeck.physics.materials import fabric_hyper_blocks as fb
 
-from helpers import same_bits_where_not_nan
+from helpers import runs_with_and_without, same_bits_where_not_nan
 
 pytestmark = pytest.mark.verification
 
@@ -109,10 +109,6 @@ def test_only_a_broadcast_row_takes_the_block_path():
 def test_a_run_on_the_block_path_gives_the_bits_of_the_point_path(monkeypatch):
     """A whole run (an F-bar 3WEAVE strip sheared and compacted by its moving top face, 2 threads as the engine
     runs): every history column and the final positions identical with the block path on and off."""
-    from fdeck.compile.problem import compile_deck
-    from fdeck.deck.model import Deck
-    from fdeck.engine import solver
-
     data = {
         "mesh": {"block": {"size": [20.0, 4.0, 2.5], "divisions": [10, 2, 3]}},
         "materials": {"fabric": {"type": "3weave"}},
@@ -124,18 +120,8 @@ def test_a_run_on_the_block_path_gives_the_bits_of_the_point_path(monkeypatch):
         "output": {"history_points": 50},
     }
 
-    def run():
-        res = solver.run(compile_deck(Deck.model_validate(data)), solver.Sink())
-        assert res.status == "completed", res.message
-        return np.array(res.history), res.final_positions
-
-    taken = []
-    block_path = fb.evaluate
-    monkeypatch.setattr(fb, "evaluate", lambda *a: taken.append(block_path(*a)) or taken[-1])
-    fast_h, fast_x = run()
+    taken, (fast_h, fast_x), (point_h, point_x) = runs_with_and_without(monkeypatch, fb, data)
     assert len(taken) > 100 and all(taken)  # every update of the run took the block path
-    monkeypatch.setattr(fb, "evaluate", lambda *a: False)
-    point_h, point_x = run()
     assert same_bits_where_not_nan(fast_h, point_h) and same_bits_where_not_nan(fast_x, point_x)
     # it did shear and compact: the top face moved 1.5 and -0.8 mm
     assert fast_x[:, 2].max() < 2.5 - 0.79 and fast_x[:, 0].max() > 20.0 + 1.49

@@ -18,7 +18,7 @@ import pytest
 import fdeck.physics.materials.fabric_membrane as fm
 from fdeck.physics.materials import fabric_membrane_blocks as fb
 
-from helpers import same_bits_where_not_nan
+from helpers import runs_with_and_without, same_bits_where_not_nan
 
 pytestmark = pytest.mark.verification
 
@@ -90,10 +90,6 @@ def test_only_a_broadcast_row_takes_the_block_path():
 def test_a_shell_run_on_the_block_path_gives_the_bits_of_the_point_path(monkeypatch):
     """A whole run (an `sm` T300 strip pulled and sheared at one end, the other clamped, 2 threads as the engine
     runs): every history column and the final positions identical with the block path on and off."""
-    from fdeck.compile.problem import compile_deck
-    from fdeck.deck.model import Deck
-    from fdeck.engine import solver
-
     data = {
         "mesh": {"plate": {"size": [20.0, 6.0], "divisions": [10, 3]}},
         "materials": {"carbon": {"type": "fabric_membrane", "preset": "t300_3k"}},
@@ -105,17 +101,7 @@ def test_a_shell_run_on_the_block_path_gives_the_bits_of_the_point_path(monkeypa
         "output": {"history_points": 50},
     }
 
-    def run_deck():
-        res = solver.run(compile_deck(Deck.model_validate(data)), solver.Sink())
-        assert res.status == "completed", res.message
-        return np.array(res.history), res.final_positions
-
-    taken = []
-    block_path = fb.evaluate
-    monkeypatch.setattr(fb, "evaluate", lambda *a: taken.append(block_path(*a)) or taken[-1])
-    fast_h, fast_x = run_deck()
+    taken, (fast_h, fast_x), (point_h, point_x) = runs_with_and_without(monkeypatch, fb, data)
     assert len(taken) > 100 and all(taken)  # every update of the run took the block path
-    monkeypatch.setattr(fb, "evaluate", lambda *a: False)
-    point_h, point_x = run_deck()
     assert same_bits_where_not_nan(fast_h, point_h) and same_bits_where_not_nan(fast_x, point_x)
     assert fast_x[:, 1].max() > 6.0 + 0.99  # it did shear

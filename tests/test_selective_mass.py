@@ -76,10 +76,10 @@ def test_added_mass_product_is_the_rigid_mode_complement():
     rigid modes (c, w x dX_a) over the element's 24 slot dofs, and mapped to nodes slot by slot. Tolerance 2e-15 of
     the largest entry, with symmetry to the same (measured 4e-16 and 1e-16: the solver takes X about the model's
     centre, so the offset costs nothing; without that centring the error is 9.4e-15, which this bound catches, and
-    5x the measured value leaves room for another CPU's order of operations). Then the cancellation where it does cost: on a 300 mm strip of 1 mm
-    elements, whose ends sit 150 element sizes from the centre, a translation and a small rotation of the whole
-    strip (rigid for every element) give dM p = 0 to about 1e-16 x 150 x (sums of some 16 terms) of c |p|
-    (measured about 1e-13 for both): 1e-12 asserted."""
+    5x the measured value leaves room for another CPU's order of operations). Then the cancellation where it does
+    cost: on a 300 mm strip of 1 mm elements, whose ends sit 150 element sizes from the centre, a translation and a
+    small rotation of the whole strip (rigid for every element) give dM p = 0 to about 1e-16 x 150 x (sums of some
+    16 terms) of c |p| (measured about 1e-13 for both): 1e-12 asserted."""
     from fdeck.compile.mesh import block
     from fdeck.engine.selective_mass import SelectiveMass
 
