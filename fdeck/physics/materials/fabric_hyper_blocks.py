@@ -55,19 +55,28 @@ def evaluate_blocks(F, frame, n_qp, prm, P, psi, modulus):
     for blk in prange((n + LANES - 1) // LANES):
         w = np.empty((ROWS, LANES))
         blocks.gather(w, F, frame, n_qp, blk, F_ROW, FR_ROW)
-        _kinematics(w)
-        _invariants(w)
-        _stretch(w, prm, 0)
-        _stretch(w, prm, 1)
-        for l in range(LANES):
-            w[X_ROW, l] = w[I_ROW + 2, l]
-        _form(w, prm, PARAMS.compaction, 2)
-        _even(w, prm, 3)
-        _even(w, prm, 4)
-        _even(w, prm, 5)
-        _stress(w)
-        _moduli(w)
+        law_stages(w, prm)
         blocks.scatter(w, P, psi, modulus, blk, P_ROW, OUT_ROW)
+
+
+@njit_inline
+def law_stages(w, prm):
+    """The law on one block's work rows w: F and the frame in rows F_ROW and FR_ROW in, P, psi and the three
+    moduli in rows P_ROW and OUT_ROW out (also called by ``benchmarks/fused8_probe.py``). Inlined here: compiled as
+    a function of its own with w passed in, it compiled in about 25 instead of 65 s but LLVM packed about half as
+    much and the law ran at half the speed (docs/kernels.md, item 12)."""
+    _kinematics(w)
+    _invariants(w)
+    _stretch(w, prm, 0)
+    _stretch(w, prm, 1)
+    for l in range(LANES):
+        w[X_ROW, l] = w[I_ROW + 2, l]
+    _form(w, prm, PARAMS.compaction, 2)
+    _even(w, prm, 3)
+    _even(w, prm, 4)
+    _even(w, prm, 5)
+    _stress(w)
+    _moduli(w)
 
 
 @njit_inline
