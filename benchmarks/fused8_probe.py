@@ -1,7 +1,7 @@
 """The eight-point hexahedra (``full``, ``fbar``) fused and vectorised over blocks of 64 elements with the law in
 the block (issue 10's SIMD route for them; a probe, not part of the engine or the tests: it was slower).
 
-    python benchmarks/fused8_probe.py                        # full and fbar, linear_elastic and 3WEAVE, 1 thread
+    python benchmarks/fused8_probe.py      # full elastic, F-bar elastic, F-bar 3WEAVE; 1 thread, 3 rounds
     python benchmarks/fused8_probe.py fbar fabric_hyper_3weave --rounds 5 --threads 2
 
 Item 10 of docs/kernels.md packed the kinematics and forces of ``hex8`` alone and found the transposes between the
@@ -13,15 +13,14 @@ as a function of its own: inlined, the kernel took 150 s to compile) and the for
 in one work array; the engine's arrays (F, J, P, psi, moduli, F-bar's Fbar, Jbar, ratios and pressures, the
 element forces) are written at the end of the block. The points are written out one call per point (q a constant
 in each), so that every row offset is a constant and LLVM tells the rows apart (with q a loop variable it packed
-a third as much). Every value is formed by the same operations in the same order as ``hex8``'s passes and the laws'
+a seventh as much). Every value is formed by the same operations in the same order as ``hex8``'s passes and the laws'
 point code: the probe checks the same bits on every output before timing.
 
 What it measured (docs/kernels.md, item 12), per element and update, 10 000 elements, 1 thread, against the three
-passes in the same process: slower for ``full`` elastic and F-bar 3WEAVE, no better for F-bar elastic; without the
-stores of F, P and Fbar (not a valid update: the frames read them) still no better than the passes
-for ``full`` elastic (measured with those stores deleted from the source). The gather and the stores of a block,
-transposed between lanes and the engine's layout, cost what the packed arithmetic saves, and the kernel compiled in
-75-90 s.
+passes in the same process: slower for each of the three, in every round; without the stores of F, P and Fbar
+(not a valid update: the frames read them; measured on the first form, with those stores deleted from the source)
+still slower for ``full`` elastic. The gather and the stores of a block, transposed between lanes and the engine's
+layout, cost what the packed arithmetic saves, and the kernels compiled in 79 s (elastic) and 91 s (3WEAVE).
 """
 
 from __future__ import annotations
@@ -103,9 +102,9 @@ class Blocks:
             update_fabric(x, self.conn_t, self.ref_t, self.frame_t, self.prm, self.fbar, self.n_el, 8, *out)
 
 
-# Two kernels, one per law, so that a deck compiles only the law it uses (both share every other stage). The law's
-# loop over the points runs to n_qp (8) given at run time: with the constant 8, LLVM unrolled it and compiled eight
-# copies of the fabric law (150 s of compilation).
+# Two kernels, one per law, so that a deck compiles only the law it uses (both share every other stage). The fabric
+# law is called out of line (``law_block``): inlined into this ``prange`` body, the kernel took about 150 s to
+# compile.
 
 @njit_parallel
 def update_elastic(x, conn_t, ref_t, prm, fbar, n_el, n_qp, F, J, P, psi, modulus, fe, Fbar, Jbar, ratio, p):
@@ -129,8 +128,8 @@ def update_elastic(x, conn_t, ref_t, prm, fbar, n_el, n_qp, F, J, P, psi, modulu
 
 @njit_parallel
 def update_fabric(x, conn_t, ref_t, frame_t, prm, fbar, n_el, n_qp, F, J, P, psi, modulus, fe, Fbar, Jbar, ratio, p):
-    """One pass per block with ``fabric_hyper`` (``fabric_hyper_blocks.law_block`` once per point, the block's
-    frame rows set once)."""
+    """One pass per block with ``fabric_hyper`` (``law_block``, which runs ``fabric_hyper_blocks.law_stages``, once
+    per point; the block's frame rows set once)."""
     for blk in prange(conn_t.shape[0]):
         w = np.empty((WORK_ROWS, LANES))
         r = ref_t[blk]
@@ -284,7 +283,7 @@ def _elastic(w, q, fbar, lam, mu):
 
 @njit_inline
 def _fabric(w, fin, out, q, prm):
-    """``fabric_hyper_blocks.law_block`` at the argument rows T (fin's frame rows are the block's), into point
+    """``law_block`` at the argument rows T (fin's frame rows are the block's), into point
     q's P, psi and modulus rows."""
     for k in range(9):
         for l in range(LANES):
@@ -423,7 +422,10 @@ def probe(form: str, mat: str, rounds: int) -> None:
 
     problem = compile_deck(Deck.model_validate(bench.deck(form, mat, [50, 50, 4], 200)))
     g = problem.groups[0]
-    blocks = Blocks(form, eligible(form, g.material, g.params), g.conn, g.dN, g.w, g.frame, g.params)
+    law = eligible(form, g.material, g.params)
+    if law is None:
+        raise SystemExit(f"{form} {mat}: not a pairing of this probe (or SVML is present)")
+    blocks = Blocks(form, law, g.conn, g.dN, g.w, g.frame, g.params)
     x = problem.X + 0.01 * np.random.default_rng(0).standard_normal(problem.X.shape)  # 1 % of the 1 mm elements
     v = np.zeros_like(x)
     g.update(x, v)  # hex8's passes

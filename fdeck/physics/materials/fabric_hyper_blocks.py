@@ -63,8 +63,8 @@ def evaluate_blocks(F, frame, n_qp, prm, P, psi, modulus):
 def law_stages(w, prm):
     """The law on one block's work rows w: F and the frame in rows F_ROW and FR_ROW in, P, psi and the three
     moduli in rows P_ROW and OUT_ROW out (also called by ``benchmarks/fused8_probe.py``). Inlined here: compiled as
-    a function of its own with w passed in, it compiled in about 25 instead of 65 s but LLVM packed about half as
-    much and the law ran at half the speed (docs/kernels.md, item 12)."""
+    a function of its own with w passed in, it compiled in about 25 instead of 45-57 s but LLVM packed about half
+    as much and the law ran at half the speed (docs/kernels.md, item 12)."""
     _kinematics(w)
     _invariants(w)
     _stretch(w, prm, 0)
