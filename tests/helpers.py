@@ -138,6 +138,17 @@ def same_bits_where_not_nan(a, b) -> bool:
             and np.array_equal(a[~nan].view(np.uint64), b[~nan].view(np.uint64)))
 
 
+def block_path_taken(module, p, F, frame) -> tuple[bool, bool]:
+    """Whether ``module.evaluate`` (a law's block path, through ``blocks.run``) takes the points F (n_el, n_qp, 3, 3)
+    with the parameter row p given per element (tiled: not what a section compiles to), then as a broadcast row."""
+    n_el, n_qp = F.shape[:2]
+    out = np.zeros((n_el, n_qp, 3, 3)), np.zeros((n_el, n_qp)), np.zeros((n_el, n_qp, 3))
+    state = np.zeros((n_el, n_qp, 0))
+    rows = np.tile(p, (n_el, 1))
+    return module.evaluate(F, frame, rows, state, *out), module.evaluate(F, frame, np.broadcast_to(p, rows.shape),
+                                                                         state, *out)
+
+
 def runs_with_and_without(monkeypatch, module, data: dict):
     """Run the deck ``data`` through the solver twice: first with ``module.evaluate`` (a law's block path) as it is,
     recording whether each call took it, then with it declining every call (the point path).

@@ -20,7 +20,7 @@ import fdeck.cards.fabric_hyper as fc
 import fdeck.physics.materials.fabric_hyper as fh
 from fdeck.physics.materials import fabric_hyper_blocks as fb
 
-from helpers import runs_with_and_without, same_bits_where_not_nan
+from helpers import block_path_taken, runs_with_and_without, same_bits_where_not_nan
 
 pytestmark = pytest.mark.verification
 
@@ -99,11 +99,7 @@ def test_block_path_is_the_point_law_bit_for_bit(name, n_el, n_qp):
 def test_only_a_broadcast_row_takes_the_block_path():
     """Per-element parameter rows (not what a section compiles to) are left to the point path."""
     p = fh.pack(fc.FabricHyper(type="fabric_hyper", preset="3weave"))
-    F, frame = points(5, 8, seed=1)
-    out = np.zeros((5, 8, 3, 3)), np.zeros((5, 8)), np.zeros((5, 8, 3))
-    rows = np.tile(p, (5, 1))
-    assert not fb.evaluate(F, frame, rows, np.zeros((5, 8, 0)), *out)
-    assert fb.evaluate(F, frame, np.broadcast_to(p, rows.shape), np.zeros((5, 8, 0)), *out)
+    assert block_path_taken(fb, p, *points(5, 8, seed=1)) == (False, True)
 
 
 def test_a_run_on_the_block_path_gives_the_bits_of_the_point_path(monkeypatch):

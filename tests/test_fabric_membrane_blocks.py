@@ -18,7 +18,7 @@ import pytest
 import fdeck.physics.materials.fabric_membrane as fm
 from fdeck.physics.materials import fabric_membrane_blocks as fb
 
-from helpers import runs_with_and_without, same_bits_where_not_nan
+from helpers import block_path_taken, runs_with_and_without, same_bits_where_not_nan
 
 pytestmark = pytest.mark.verification
 
@@ -80,11 +80,7 @@ def test_block_path_is_the_point_law_bit_for_bit(preset, n_pt, n_qp):
 
 def test_only_a_broadcast_row_takes_the_block_path():
     p = fm.pack(fm.FabricMembrane(type="fabric_membrane", preset="t300_3k"))
-    F, frame = points(5, 4, seed=1)
-    out = np.zeros((5, 4, 3, 3)), np.zeros((5, 4)), np.zeros((5, 4, 3))
-    rows = np.tile(p, (5, 1))
-    assert not fb.evaluate(F, frame, rows, np.zeros((5, 4, 0)), *out)
-    assert fb.evaluate(F, frame, np.broadcast_to(p, rows.shape), np.zeros((5, 4, 0)), *out)
+    assert block_path_taken(fb, p, *points(5, 4, seed=1)) == (False, True)
 
 
 def test_a_shell_run_on_the_block_path_gives_the_bits_of_the_point_path(monkeypatch):
