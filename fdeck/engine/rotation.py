@@ -25,6 +25,7 @@ import math
 
 import numpy as np
 
+from fdeck.engine.integrate import CHUNK
 from fdeck.jit import njit_parallel, prange
 
 
@@ -77,32 +78,46 @@ def drift_rot(d, w, w_old, I, m_ext, m_int, m_damp, me_prev, md_prev, dtheta, re
 
     reaction = I (w - w_old) / dt_avg - (m_ext - m_int + m_damp). Returns (work of external + reaction moments over
     the previous step, damping dissipation, rotational kinetic energy at t_n), as ``integrate.drift`` does for
-    forces. Then me_prev = m_ext + reaction, md_prev = m_damp, dtheta = dt w and every director is rotated by
-    Rodrigues' formula R(a) d = d cos|a| + (a^ x d) sin|a| + a^ (a^ . d)(1 - cos|a|), a^ = a / |a|.
+    forces (summed per ``integrate.CHUNK`` nodes, then serially). Then me_prev = m_ext + reaction, md_prev = m_damp,
+    dtheta = dt w and every director is rotated by Rodrigues' formula R(a) d = d cos|a| + (a^ x d) sin|a| +
+    a^ (a^ . d)(1 - cos|a|), a^ = a / |a|.
     """
+    n_node = d.shape[0]
+    part = np.zeros(((n_node + CHUNK - 1) // CHUNK, 3))
+    for k in prange(part.shape[0]):
+        work = 0.0
+        diss = 0.0
+        ke = 0.0
+        for n in range(k * CHUNK, min(n_node, (k + 1) * CHUNK)):
+            for i in range(3):
+                r = I[n] * (w[n, i] - w_old[n, i]) / dt_avg - (m_ext[n, i] - m_int[n, i] + m_damp[n, i])
+                reaction[n, i] = r
+                me = m_ext[n, i] + r
+                work += 0.5 * (me_prev[n, i] + me) * dtheta[n, i]
+                diss -= 0.5 * (md_prev[n, i] + m_damp[n, i]) * dtheta[n, i]
+                wn = w_old[n, i] if first else 0.5 * (w_old[n, i] + w[n, i])
+                ke += 0.5 * I[n] * wn * wn
+                me_prev[n, i] = me
+                md_prev[n, i] = m_damp[n, i]
+                dtheta[n, i] = dt * w[n, i]
+            a0, a1, a2 = dtheta[n, 0], dtheta[n, 1], dtheta[n, 2]
+            angle = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
+            if angle > 0.0:
+                u0, u1, u2 = a0 / angle, a1 / angle, a2 / angle
+                d0, d1, d2 = d[n, 0], d[n, 1], d[n, 2]
+                c, s = math.cos(angle), math.sin(angle)
+                ud = (u0 * d0 + u1 * d1 + u2 * d2) * (1.0 - c)
+                d[n, 0] = d0 * c + (u1 * d2 - u2 * d1) * s + u0 * ud
+                d[n, 1] = d1 * c + (u2 * d0 - u0 * d2) * s + u1 * ud
+                d[n, 2] = d2 * c + (u0 * d1 - u1 * d0) * s + u2 * ud
+        part[k, 0] = work
+        part[k, 1] = diss
+        part[k, 2] = ke
     work = 0.0
     diss = 0.0
     ke = 0.0
-    for n in prange(d.shape[0]):
-        for i in range(3):
-            r = I[n] * (w[n, i] - w_old[n, i]) / dt_avg - (m_ext[n, i] - m_int[n, i] + m_damp[n, i])
-            reaction[n, i] = r
-            me = m_ext[n, i] + r
-            work += 0.5 * (me_prev[n, i] + me) * dtheta[n, i]
-            diss -= 0.5 * (md_prev[n, i] + m_damp[n, i]) * dtheta[n, i]
-            wn = w_old[n, i] if first else 0.5 * (w_old[n, i] + w[n, i])
-            ke += 0.5 * I[n] * wn * wn
-            me_prev[n, i] = me
-            md_prev[n, i] = m_damp[n, i]
-            dtheta[n, i] = dt * w[n, i]
-        a0, a1, a2 = dtheta[n, 0], dtheta[n, 1], dtheta[n, 2]
-        angle = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
-        if angle > 0.0:
-            u0, u1, u2 = a0 / angle, a1 / angle, a2 / angle
-            d0, d1, d2 = d[n, 0], d[n, 1], d[n, 2]
-            c, s = math.cos(angle), math.sin(angle)
-            ud = (u0 * d0 + u1 * d1 + u2 * d2) * (1.0 - c)
-            d[n, 0] = d0 * c + (u1 * d2 - u2 * d1) * s + u0 * ud
-            d[n, 1] = d1 * c + (u2 * d0 - u0 * d2) * s + u1 * ud
-            d[n, 2] = d2 * c + (u0 * d1 - u1 * d0) * s + u2 * ud
+    for k in range(part.shape[0]):
+        work += part[k, 0]
+        diss += part[k, 1]
+        ke += part[k, 2]
     return work, diss, ke

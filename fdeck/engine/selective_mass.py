@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from fdeck.engine import springs as sp
 from fdeck.engine.gather import node_slots
 from fdeck.jit import njit, njit_inline, njit_parallel, prange
 
@@ -313,23 +314,27 @@ def _lumped(q, m, p):
 
 
 @njit
-def apply(p, m, conn, X, Xc, Jinv, c, ptr, elems, rows, free, part, q):
-    """q = (M + dM) p over all dofs [N for p in mm/s^2] (the CG iteration's passes; the dot product unused)."""
+def apply(p, m, conn, X, Xc, Jinv, c, ptr, elems, rows, free, part, q, snode, sK, sc):
+    """q = (M + dM + sc K) p over all dofs [N for p in mm/s^2] (the CG iteration's passes; the dot product unused),
+    K the implicit contact springs' entries (snode, sK; ``engine.springs``, none without them)."""
     _lumped(q, m, p)
+    sp.add_product(snode, sK, sc, p, q)
     element_rows(p, conn, X, Xc, Jinv, c, rows)
     _gather_dot(rows, ptr, elems, X, q, p, free, part)
 
 
 @njit
-def solve(a, r, m, conn, X, Xc, Jinv, c, ptr, elems, free, dinv, tol, max_it, rows, q, res, z, p, part):
-    """Conjugate gradients for (M + dM) a = r on the free dofs, a (n_node, 3) holding the warm start on the free
-    dofs and the prescribed accelerations on the others (kept). Returns (iterations, relative residual).
+def solve(a, r, m, conn, X, Xc, Jinv, c, ptr, elems, free, dinv, tol, max_it, rows, q, res, z, p, part, snode, sK,
+          sc):
+    """Conjugate gradients for (M + dM + sc K) a = r on the free dofs (K: ``apply``), a (n_node, 3) holding the warm
+    start on the free dofs and the prescribed accelerations on the others (kept). Returns (iterations, relative
+    residual).
 
     Stops when sqrt(res . D^-1 res) <= tol sqrt(rhs . D^-1 rhs) (rhs = r - dM a_c on the free dofs) or after
     max_it iterations. Work arrays rows (n_el, ROW), q, res, z, p (n_node, 3), part (n_chunk,)."""
     # right-hand side norm: r - (M + dM) a_c on the free dofs, with a_c alone
     if _prescribed(a, free, z) > 0:
-        apply(z, m, conn, X, Xc, Jinv, c, ptr, elems, rows, free, part, q)
+        apply(z, m, conn, X, Xc, Jinv, c, ptr, elems, rows, free, part, q, snode, sK, sc)
     else:  # symmetry planes and fixed supports: (M + dM) 0 = 0, one element pass fewer per cycle
         q[...] = 0.0
     ref = _residual(r, q, free, dinv, res, part)
@@ -338,13 +343,14 @@ def solve(a, r, m, conn, X, Xc, Jinv, c, ptr, elems, free, dinv, tol, max_it, ro
             for j in range(3):
                 a[i, j] *= 1.0 - free[i, j]
         return 0, 0.0
-    apply(a, m, conn, X, Xc, Jinv, c, ptr, elems, rows, free, part, q)
+    apply(a, m, conn, X, Xc, Jinv, c, ptr, elems, rows, free, part, q, snode, sK, sc)
     rz = _residual(r, q, free, dinv, res, part)
     p[...] = 0.0
     it = 0
     beta = 0.0
     while rz > tol * tol * ref and it < max_it:  # four passes per iteration (fused kernels above)
         _direction(z, res, dinv, p, beta, q, m)
+        sp.add_product(snode, sK, sc, p, q)
         element_rows(p, conn, X, Xc, Jinv, c, rows)
         alpha = rz / _gather_dot(rows, ptr, elems, X, q, p, free, part)
         rz_new = _step(a, res, p, q, free, alpha, dinv, part)
@@ -407,6 +413,7 @@ class SelectiveMass:
         self._part = np.zeros((n_node + CHUNK - 1) // CHUNK)
         self._ke = np.zeros(n_el)
         self._r = np.zeros((n_node, 3))
+        self._no_springs = (np.zeros(0, np.int64), np.zeros((0, 6)), np.zeros((0, 3)))
         self._vn = np.zeros((n_node, 3))  # scratch of ``add``: mid-cycle velocities of the raised elements' nodes
         self.cycles = 0
         self.iterations = 0
@@ -456,9 +463,11 @@ class SelectiveMass:
         self._vn[touched] = 0.5 * (v_old[touched] + v[touched])  # the only nodes _kinetic_of reads
         return _kinetic_of(self._vn, self.conn, self.X, self.Xc, self.Jinv, dc, idx)
 
-    def accelerate(self, v, v_old, f_ext, f_int, f_damp, dt_avg) -> None:
+    def accelerate(self, v, v_old, f_ext, f_int, f_damp, dt_avg, springs=None, dt=0.0) -> None:
         """After the lumped kick and the constraints: a_c = (v - v_old) / dt_avg on prescribed dofs, a_f from the
-        solve with r = f_ext - f_int + f_damp, v = v_old + dt_avg a on free dofs; then g = dM a."""
+        solve with r = f_ext - f_int + f_damp, v = v_old + dt_avg a on free dofs; then g = dM a. With implicit
+        contact springs (``engine.springs.Springs``, dt the step) the solve is (M + dM + dt dt_avg K) a = r - dt K
+        (v_old - v_tool) on their nodes, its preconditioner with them."""
         # warm start: the free dofs' accelerations extrapolated from the last three cycles (quadratic; linear on
         # the second cycle). Against the last cycle's alone, mean iterations per cycle measured on the first 6 000
         # cycles of the coarse tetrahedron 10.6 -> 7.7, double dome 0/90 8.5 -> 6.8, and on 0.15 s of the 5 mm weft
@@ -468,8 +477,15 @@ class SelectiveMass:
         _start(a0, a1, a2, min(WARM_START_ORDER, self.cycles - 1), v, v_old, dt_avg, free, f_ext, f_int, f_damp, r)
         self.a, self.a_last, self.a_last2 = a2, a0, a1
         rows, q, res, z, p = self._work
+        snode, sK, vt = springs.entries() if springs is not None else self._no_springs
+        sc = dt * dt_avg
+        if len(snode):
+            sp.add_rhs(snode, sK, vt, dt, v_old, r)
+            sp.precondition(snode, sK, sc, self.diag, free, self.dinv, True)
         it, rel = solve(self.a, r, self.m, self.conn, self.X, self.Xc, self.Jinv, self.c, self.ptr, self.elems, free,
-                        self.dinv, self.tol, self.max_it, rows, q, res, z, p, self._part)
+                        self.dinv, self.tol, self.max_it, rows, q, res, z, p, self._part, snode, sK, sc)
+        if len(snode):
+            sp.precondition(snode, sK, sc, self.diag, free, self.dinv, False)
         _velocities(v, v_old, dt_avg, self.a, free)
         element_rows(self.a, self.conn, self.X, self.Xc, self.Jinv, self.c, rows)
         gather_added(rows, self.ptr, self.elems, self.X, self.a, self.g)

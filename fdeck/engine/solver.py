@@ -40,6 +40,7 @@ from fdeck.engine import snapshot
 from fdeck.engine.integrate import drift, kick
 from fdeck.engine.ledger import CORE, Ledger
 from fdeck.engine.rotation import Rotations, drift_rot, kick_rot
+from fdeck.engine.springs import Springs
 
 
 class RunStopped(Exception):
@@ -220,6 +221,7 @@ def _run(problem, sink: Sink, should_stop, resume) -> Result:
     constraints = [e for e in effects if e.constrains]
     movers = [e for e in effects if e.moves]
     sms = next((e for e in effects if getattr(e, "solves_mass", False)), None)  # selective mass scaling
+    implicit = [e for e in effects if getattr(e, "implicit", False)]  # contact pairs with implicit springs
     # under mass tracking: effects whose step is a share of the elements' own (bulk viscosity) follow the added
     # mass, the hinges of fibre bending (``sms.stiff``) cap it, the others (contact) bound it
     follow = [e for e in effects if getattr(e, "follows_element_steps", False)]
@@ -233,6 +235,7 @@ def _run(problem, sink: Sink, should_stop, resume) -> Result:
     fd_prev = np.zeros((n, 3))  # damping force at the previous cycle
     dx = np.zeros((n, 3))  # last position increment
     v_old, reaction = np.zeros((n, 3)), np.zeros((n, 3))
+    springs = Springs(implicit, n) if implicit else None
     arrays = dict(x=x, v=v, v_old=v_old, f_int=f_int, f_ext=f_ext, f_damp=f_damp, fe_prev=fe_prev, fd_prev=fd_prev,
                   dx=dx, reaction=reaction)
     rot = None
@@ -383,13 +386,24 @@ def _run(problem, sink: Sink, should_stop, resume) -> Result:
                 kick(v, v_old, inv_m, f_ext, f_int, f_damp, dt_avg)
                 if rot is not None:
                     kick_rot(rot.w, rot.w_old, rot.inv_I, rot.m_ext, rot.m_int, rot.m_damp, dt_avg)
+                solved = sms is not None and sms.active  # non-diagonal mass: the free dofs' accelerations solved
+                if springs is not None:  # the nodes in contact take their springs implicitly (engine.springs)
+                    t0 = timer.add("integrator", t0)
+                    springs.gather(t, dt)
+                    if not solved:
+                        springs.lumped(v, v_old, m, dt, dt_avg)
+                    t0 = timer.add("contact springs (implicit)", t0)
                 for c in constraints:
                     c.constrain(t + dt, dt, x, v)
-                if sms is not None and sms.active:  # non-diagonal mass: the free dofs' accelerations are solved
+                if solved:
                     t0 = timer.add("integrator", t0)
-                    sms.solver.accelerate(v, v_old, f_ext, f_int, f_damp, dt_avg)
+                    sms.solver.accelerate(v, v_old, f_ext, f_int, f_damp, dt_avg, springs, dt)
                     w_ext += sms.solver.work(dx)
                     t0 = timer.add(sms.name, t0)
+                if springs is not None:
+                    t0 = timer.add("integrator", t0)
+                    springs.finish(v, dt, f_int, dx)
+                    t0 = timer.add("contact springs (implicit)", t0)
                 # ledger at t_n (kinetic energy needs v(n+1/2)), then positions move to t_(n+1)
                 w, dd, ke = drift(x, v, v_old, m, f_ext, f_int, f_damp, fe_prev, fd_prev, dx, reaction, dt, dt_avg,
                                   res.cycles == 0)

@@ -55,6 +55,7 @@ class SubcyclingEffect(Effect):
             if e is self:
                 continue
             why = ("acts on rotations" if e.rotational
+                   else "integrates its contact springs implicitly (springs: implicit)" if getattr(e, "implicit", False)
                    else f"adds {e.forces} forces" if e.forces not in (None, "external") and not e.subcycling_safe
                    else None)
             if why:

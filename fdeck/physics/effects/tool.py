@@ -69,6 +69,15 @@ class RigidTool(Effect):
             return float(np.abs(self.value * a).max())
         return float(np.abs(np.diff(self.value * a)).max() / (t[1] - t[0]))
 
+    def velocity(self, t: float, dt: float) -> np.ndarray:
+        """(3,) [mm/s] the tool's velocity over [t, t + dt] as ``advance`` will move it (a force-driven tool: its
+        last half step's, its next one depending on the load being computed)."""
+        if self.mode == "displacement":
+            return self.value * (self.amp(t + dt) - self.amp(t)) / dt * self.direction
+        if self.mode == "velocity":
+            return self.value * self.amp(t + 0.5 * dt) * self.direction
+        return self.V * self.direction if self.mode == "force" else np.zeros(3)
+
     def advance(self, t_next, dt, dt_avg):
         if self.mode == "displacement":
             self.u = self.value * self.amp(t_next) * self.direction
