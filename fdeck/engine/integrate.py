@@ -5,7 +5,7 @@ Shapes: every nodal array is (n_node, 3) [mm, mm/s, N]; m and inv_m are (n_node,
 
 import numpy as np
 
-from fdeck.jit import njit_parallel, prange
+from fdeck.jit import njit_inline, njit_parallel, prange
 
 
 @njit_parallel
@@ -20,6 +20,19 @@ def kick(v, v_old, inv_m, f_ext, f_int, f_damp, dt_avg):
 CHUNK = 256
 """Nodes per partial sum of the ledger increments: fixed, so that the sums do not depend on the thread count (a
 prange reduction splits the nodes by thread, and its rounding with it)."""
+
+
+@njit_inline
+def chunk_totals(part):
+    """The three columns of part (n_chunk, 3) summed serially, in chunk order."""
+    s0 = 0.0
+    s1 = 0.0
+    s2 = 0.0
+    for c in range(part.shape[0]):
+        s0 += part[c, 0]
+        s1 += part[c, 1]
+        s2 += part[c, 2]
+    return s0, s1, s2
 
 
 @njit_parallel
@@ -54,11 +67,4 @@ def drift(x, v, v_old, m, f_ext, f_int, f_damp, fe_prev, fd_prev, dx, reaction, 
         part[c, 0] = w
         part[c, 1] = d
         part[c, 2] = ke
-    w = 0.0
-    d = 0.0
-    ke = 0.0
-    for c in range(part.shape[0]):
-        w += part[c, 0]
-        d += part[c, 1]
-        ke += part[c, 2]
-    return w, d, ke
+    return chunk_totals(part)

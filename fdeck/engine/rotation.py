@@ -25,7 +25,7 @@ import math
 
 import numpy as np
 
-from fdeck.engine.integrate import CHUNK
+from fdeck.engine.integrate import CHUNK, chunk_totals
 from fdeck.jit import njit_parallel, prange
 
 
@@ -113,11 +113,4 @@ def drift_rot(d, w, w_old, I, m_ext, m_int, m_damp, me_prev, md_prev, dtheta, re
         part[k, 0] = work
         part[k, 1] = diss
         part[k, 2] = ke
-    work = 0.0
-    diss = 0.0
-    ke = 0.0
-    for k in range(part.shape[0]):
-        work += part[k, 0]
-        diss += part[k, 1]
-        ke += part[k, 2]
-    return work, diss, ke
+    return chunk_totals(part)
