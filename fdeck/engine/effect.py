@@ -37,6 +37,15 @@ import numpy as np
 from fdeck.engine.ledger import Term
 
 
+def free_dofs(constraints: list, x: np.ndarray) -> np.ndarray:
+    """(n_node, 3) 1.0 on the translational dofs no constraint writes, 0.0 on the prescribed ones (found by
+    letting the constraints write into NaNs)."""
+    probe = np.full(x.shape, np.nan)
+    for c in constraints:
+        c.constrain(0.0, 1.0, x.copy(), probe)
+    return np.isnan(probe).astype(float)
+
+
 class Effect:
     name = "effect"
     forces: str | None = None  # "external", "damping", "internal" or None (no forces)

@@ -31,8 +31,9 @@ slender strip with 5 mm elements and a 5x step that moves the first bending freq
 projector by less than 0.01 % (``tests/test_selective_mass.py``).
 
 Per cycle the engine forms r = f_ext - f_int + f_damp, and the constraints fix the accelerations a_c of prescribed
-dofs; the free accelerations solve (M + dM)_ff a_f = r_f - dM_fc a_c by conjugate gradients preconditioned by the
-diagonal, warm-started from the last cycles' a, with element-by-element products (no assembled matrix): each
+dofs; the free accelerations solve (M + dM)_ff a_f = r_f - dM_fc a_c (with implicit contact springs K,
+``engine.springs``: M + dM + dt dt_avg K, and r less dt K (v_old - v_tool)) by conjugate gradients preconditioned by
+the diagonal, warm-started from the last cycles' a, with element-by-element products (no assembled matrix): each
 element reduces p to seven numbers (``element_rows``) and each node sums its elements' in a fixed order (CSR node
 -> slots, ``engine.gather.node_slots``); dot products are summed per fixed chunk of nodes and then serially, so
 runs are bitwise identical on any thread count.
@@ -330,9 +331,9 @@ def solve(a, r, m, conn, X, Xc, Jinv, c, ptr, elems, free, dinv, tol, max_it, ro
     start on the free dofs and the prescribed accelerations on the others (kept). Returns (iterations, relative
     residual).
 
-    Stops when sqrt(res . D^-1 res) <= tol sqrt(rhs . D^-1 rhs) (rhs = r - dM a_c on the free dofs) or after
+    Stops when sqrt(res . D^-1 res) <= tol sqrt(rhs . D^-1 rhs) (rhs = r - (dM + sc K) a_c on the free dofs) or after
     max_it iterations. Work arrays rows (n_el, ROW), q, res, z, p (n_node, 3), part (n_chunk,)."""
-    # right-hand side norm: r - (M + dM) a_c on the free dofs, with a_c alone
+    # right-hand side norm: r - (M + dM + sc K) a_c on the free dofs, with a_c alone
     if _prescribed(a, free, z) > 0:
         apply(z, m, conn, X, Xc, Jinv, c, ptr, elems, rows, free, part, q, snode, sK, sc)
     else:  # symmetry planes and fixed supports: (M + dM) 0 = 0, one element pass fewer per cycle
@@ -481,11 +482,11 @@ class SelectiveMass:
         sc = dt * dt_avg
         if len(snode):
             sp.add_rhs(snode, sK, vt, dt, v_old, r)
-            sp.precondition(snode, sK, sc, self.diag, free, self.dinv, True)
+            sp.precondition(snode, sK, sc, self.diag, free, self.dinv, True, springs.seen)
         it, rel = solve(self.a, r, self.m, self.conn, self.X, self.Xc, self.Jinv, self.c, self.ptr, self.elems, free,
                         self.dinv, self.tol, self.max_it, rows, q, res, z, p, self._part, snode, sK, sc)
         if len(snode):
-            sp.precondition(snode, sK, sc, self.diag, free, self.dinv, False)
+            sp.precondition(snode, sK, sc, self.diag, free, self.dinv, False, springs.seen)
         _velocities(v, v_old, dt_avg, self.a, free)
         element_rows(self.a, self.conn, self.X, self.Xc, self.Jinv, self.c, rows)
         gather_added(rows, self.ptr, self.elems, self.X, self.a, self.g)

@@ -334,6 +334,8 @@ def _run(problem, sink: Sink, should_stop, resume) -> Result:
                 e.begin_step(k, plan)
             if sms is not None:
                 sms.prepare(constraints, x)
+            if springs is not None:
+                springs.prepare(constraints, x)
             collapse = getattr(problem.deck.steps[k], "min_dt_ratio", 0.0)
             if resume is not None and k == k0:
                 # the step's set-up above, then the saved state over it (history variables, loop counters)
@@ -386,6 +388,8 @@ def _run(problem, sink: Sink, should_stop, resume) -> Result:
                 kick(v, v_old, inv_m, f_ext, f_int, f_damp, dt_avg)
                 if rot is not None:
                     kick_rot(rot.w, rot.w_old, rot.inv_I, rot.m_ext, rot.m_int, rot.m_damp, dt_avg)
+                for c in constraints:
+                    c.constrain(t + dt, dt, x, v)
                 solved = sms is not None and sms.active  # non-diagonal mass: the free dofs' accelerations solved
                 if springs is not None:  # the nodes in contact take their springs implicitly (engine.springs)
                     t0 = timer.add("integrator", t0)
@@ -393,8 +397,6 @@ def _run(problem, sink: Sink, should_stop, resume) -> Result:
                     if not solved:
                         springs.lumped(v, v_old, m, dt, dt_avg)
                     t0 = timer.add("contact springs (implicit)", t0)
-                for c in constraints:
-                    c.constrain(t + dt, dt, x, v)
                 if solved:
                     t0 = timer.add("integrator", t0)
                     sms.solver.accelerate(v, v_old, f_ext, f_int, f_damp, dt_avg, springs, dt)

@@ -28,8 +28,9 @@ oscillating on its spring loses energy each cycle where the explicit spring woul
 
 With lumped mass each node solves its 3 x 3 system in closed form (the springs of several pairs at one node
 summed); with selective mass scaling the spring terms join the conjugate-gradient operator (``selective_mass``:
-M + dM + dt dt_avg K) and its diagonal preconditioner. Prescribed dofs (symmetry planes) are imposed after the
-lumped solve, their reactions taking the difference; the selective-mass solve keeps them out of the unknowns.
+M + dM + dt dt_avg K) and its diagonal preconditioner. Prescribed dofs (symmetry planes) are known in both: the
+constraints act first, and the solves take their velocity changes to the right-hand side (their reactions then
+carry the springs' share there).
 
 Shapes: entries e (the nodes in contact, a node once per pair): node (e,) int64, K (e, 6) [N/mm] as (xx, xy, xz,
 yy, yz, zz), vt (e, 3) [mm/s]; nodal arrays (n_node, 3).
@@ -39,6 +40,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from fdeck.engine.effect import free_dofs
 from fdeck.jit import njit
 
 
@@ -88,8 +90,9 @@ def add_rhs(node, K, vt, dt, v_old, r):
 
 
 @njit
-def precondition(node, K, c, diag, free, dinv, add):
-    """dinv = free / (diag + c diag(K)) at the entries' nodes (``add``), or back to free / diag."""
+def precondition(node, K, c, diag, free, dinv, add, seen):
+    """dinv = free / (diag + c diag(K)) at the entries' nodes, the K of every pair at a node summed (``add``), or
+    back to free / diag; seen (n_node,) scratch, left False (a node of several pairs is inverted once)."""
     for e in range(node.shape[0]):
         i = node[e]
         for j in range(3):
@@ -102,15 +105,21 @@ def precondition(node, K, c, diag, free, dinv, add):
             dinv[i, 2] += c * K[e, 5]
     for e in range(node.shape[0]):
         i = node[e]
+        if seen[i]:
+            continue
+        seen[i] = True
         for j in range(3):
             dinv[i, j] = free[i, j] / dinv[i, j] if dinv[i, j] > 0.0 else 0.0
+    for e in range(node.shape[0]):
+        seen[node[e]] = False
 
 
 @njit
-def lumped_solve(node, K, vt, m, v, v_old, c, Ks, bs, seen):
-    """After the lumped kick (v = v_old + dt_avg r / m): v of each entry's node from (m + c K) (v - v_old) =
-    m (v - v_old)_kick - c K (v_old - vt), the K of its pairs summed (c = dt dt_avg). Ks (n_node, 6), bs
-    (n_node, 3), seen (n_node,) scratch, left zeroed."""
+def lumped_solve(node, K, vt, m, v, v_old, free, c, Ks, bs, seen):
+    """After the lumped kick (v = v_old + dt_avg r / m) and the constraints (v prescribed where free is 0): v of each
+    entry's node on its free dofs from (m + c K) (v - v_old) = m (v - v_old)_kick - c K (v_old - vt), the K of its
+    pairs summed (c = dt dt_avg), the prescribed dofs' v - v_old known (moved to the right-hand side). Ks (n_node,
+    6), bs (n_node, 3), seen (n_node,) scratch, left zeroed."""
     for e in range(node.shape[0]):
         i = node[e]
         for j in range(6):
@@ -119,23 +128,37 @@ def lumped_solve(node, K, vt, m, v, v_old, c, Ks, bs, seen):
         bs[i, 0] += y0
         bs[i, 1] += y1
         bs[i, 2] += y2
+    A = np.zeros((3, 3))
+    b = np.zeros(3)
     for e in range(node.shape[0]):
         i = node[e]
         if seen[i]:
             continue
         seen[i] = True
-        a00, a01, a02 = m[i] + c * Ks[i, 0], c * Ks[i, 1], c * Ks[i, 2]
-        a11, a12, a22 = m[i] + c * Ks[i, 3], c * Ks[i, 4], m[i] + c * Ks[i, 5]
-        b0 = m[i] * (v[i, 0] - v_old[i, 0]) - c * bs[i, 0]
-        b1 = m[i] * (v[i, 1] - v_old[i, 1]) - c * bs[i, 1]
-        b2 = m[i] * (v[i, 2] - v_old[i, 2]) - c * bs[i, 2]
+        A[0, 0], A[0, 1], A[0, 2] = m[i] + c * Ks[i, 0], c * Ks[i, 1], c * Ks[i, 2]
+        A[1, 1], A[1, 2], A[2, 2] = m[i] + c * Ks[i, 3], c * Ks[i, 4], m[i] + c * Ks[i, 5]
+        A[1, 0], A[2, 0], A[2, 1] = A[0, 1], A[0, 2], A[1, 2]
+        for j in range(3):
+            b[j] = m[i] * (v[i, j] - v_old[i, j]) - c * bs[i, j]
+        for j in range(3):  # a prescribed dof: its known change to the other rows' right-hand side, its row e_j
+            if free[i, j] == 0.0:
+                dv = v[i, j] - v_old[i, j]
+                for k in range(3):
+                    if k != j:
+                        b[k] -= A[k, j] * dv
+                        A[k, j] = 0.0
+                        A[j, k] = 0.0
+                A[j, j] = 1.0
+                b[j] = dv
         # symmetric 3 x 3 by its adjugate (positive definite: m > 0, K positive semi-definite)
-        c00, c01, c02 = a11 * a22 - a12 * a12, a02 * a12 - a01 * a22, a01 * a12 - a02 * a11
-        c11, c12, c22 = a00 * a22 - a02 * a02, a01 * a02 - a00 * a12, a00 * a11 - a01 * a01
-        det = a00 * c00 + a01 * c01 + a02 * c02
-        v[i, 0] = v_old[i, 0] + (c00 * b0 + c01 * b1 + c02 * b2) / det
-        v[i, 1] = v_old[i, 1] + (c01 * b0 + c11 * b1 + c12 * b2) / det
-        v[i, 2] = v_old[i, 2] + (c02 * b0 + c12 * b1 + c22 * b2) / det
+        c00, c01, c02 = A[1, 1] * A[2, 2] - A[1, 2] * A[1, 2], A[0, 2] * A[1, 2] - A[0, 1] * A[2, 2], \
+            A[0, 1] * A[1, 2] - A[0, 2] * A[1, 1]
+        c11, c12, c22 = A[0, 0] * A[2, 2] - A[0, 2] * A[0, 2], A[0, 1] * A[0, 2] - A[0, 0] * A[1, 2], \
+            A[0, 0] * A[1, 1] - A[0, 1] * A[0, 1]
+        det = A[0, 0] * c00 + A[0, 1] * c01 + A[0, 2] * c02
+        v[i, 0] = v_old[i, 0] + (c00 * b[0] + c01 * b[1] + c02 * b[2]) / det
+        v[i, 1] = v_old[i, 1] + (c01 * b[0] + c11 * b[1] + c12 * b[2]) / det
+        v[i, 2] = v_old[i, 2] + (c02 * b[0] + c12 * b[1] + c22 * b[2]) / det
     for e in range(node.shape[0]):
         i = node[e]
         seen[i] = False
@@ -189,6 +212,11 @@ class Springs:
         self.count = 0
         self.slots: list[np.ndarray] = []
         self.Ks, self.bs, self.seen = np.zeros((n_node, 6)), np.zeros((n_node, 3)), np.zeros(n_node, bool)
+        self.free = np.ones((n_node, 3))
+
+    def prepare(self, constraints: list, x) -> None:
+        """At a step's start: which translational dofs the constraints prescribe (``effect.free_dofs``)."""
+        self.free = free_dofs(constraints, x)
 
     def gather(self, t: float, dt: float) -> None:
         """The entries of the nodes in contact at t_n (after the forces there), with each tool's velocity over
@@ -208,9 +236,9 @@ class Springs:
         return self.node[:c], self.K[:c], self.vt[:c]
 
     def lumped(self, v, v_old, m, dt: float, dt_avg: float) -> None:
-        """The lumped-mass update of the nodes in contact (after ``engine.integrate.kick``)."""
+        """The lumped-mass update of the nodes in contact (after ``engine.integrate.kick`` and the constraints)."""
         node, K, vt = self.entries()
-        lumped_solve(node, K, vt, m, v, v_old, dt * dt_avg, self.Ks, self.bs, self.seen)
+        lumped_solve(node, K, vt, m, v, v_old, self.free, dt * dt_avg, self.Ks, self.bs, self.seen)
 
     def finish(self, v, dt: float, f_int, dx) -> None:
         """With v(n+1/2) known: each pair's spring forces fc into f_int and its booking over the last increment dx

@@ -28,7 +28,7 @@ from __future__ import annotations
 import numpy as np
 
 from fdeck.compile.errors import CompileError
-from fdeck.engine.effect import Effect
+from fdeck.engine.effect import Effect, free_dofs
 from fdeck.engine.ledger import VALUE, WORK, Term
 from fdeck.engine.selective_mass import SelectiveMass
 from fdeck.registry import EffectKind, register_effect
@@ -92,10 +92,7 @@ class SelectiveMassEffect(Effect):
         """Set the step up (called by the engine after ``begin_step``): the prescribed dofs are those the
         constraints write (found by letting them write into NaNs; translational constraints only, as selective
         scaling is refused with rotations)."""
-        probe = np.full(x.shape, np.nan)
-        for c in constraints:
-            c.constrain(0.0, 1.0, x.copy(), probe)
-        free = np.isnan(probe).astype(float)
+        free = free_dofs(constraints, x)
         # element masses of the translational (base) density rho / (1 + beta): physical, or uniformly scaled
         base = [g.mass(r / (1.0 + b)).sum(axis=1) for g, r, b in zip(self.groups, self.plan.rho, self.plan.selective)]
         self.solver.set_step(self.plan.selective, base, self.plan.mass, free, self.plan.cg)
