@@ -95,9 +95,8 @@ def test_implicit_springs_rest_at_the_law_with_a_step_far_above_their_own():
 def test_an_undamped_drop_onto_implicit_springs_books_what_they_dissipate():
     """Requirement: undamped, the block released at the law's first touch stops bouncing on the floor: the floor
     force averaged over the second half of the run carries the weight within 1 % (measured 3e-4; with explicit
-    springs the block
-    still bounces, mean 0.90 of the weight; the block's own elastic vibration, undamped in both, makes the force
-    swing about that mean); the energy the implicit step removes is booked: positive and at least 90 % of the
+    springs the block still bounces, mean 0.90 of the weight; the block's own elastic vibration, undamped in both,
+    makes the force swing about that mean); the energy the implicit step removes is booked: positive and at least 90 % of the
     energy the block lost (gravity's work less its kinetic and stored energy at the end; measured 99.9 %), and the
     balance closes within 1e-3 of the largest energy (the trapezoidal rule on the larger step; measured 2.2e-4)."""
     _, res, h = block([{"duration": 0.05}], [{"type": "gravity", "acceleration": [0, 0, -G]}])
