@@ -48,16 +48,18 @@ def test_exponential_law_closed_form_cap_and_energy():
         assert de == pytest.approx(normal_law(law, h)[0], rel=1e-6)
 
 
-def block(steps, loads, friction=None, stiffness=200.0, z0=0.0, extra=None):
-    """A 10 x 10 x 5 mm steel-like block (one element layer, 2 x 2 in plan) on the plane z = 0."""
+def block(steps, loads, friction=None, stiffness=200.0, z0=0.0, extra=None, normal=None, springs="explicit",
+          floor=None):
+    """A 10 x 10 x 5 mm steel-like block (one element layer, 2 x 2 in plan) on the plane z = 0 (or the tool card
+    ``floor``), its contact law linear of ``stiffness`` unless ``normal`` (a normal-law card) is given."""
     data = {
         "mesh": {"block": {"origin": [0.0, 0.0, z0], "size": [10.0, 10.0, 5.0], "divisions": [2, 2, 1]}},
         "materials": {"m": {"type": "linear_elastic", "density": 1e-6, "youngs_modulus": 1000.0,
                             "poisson_ratio": 0.3}},
         "sections": [{"material": "m", "formulation": "full"}],
-        "tools": {"floor": {"surface": {"shape": "plane", "point": [0, 0, 0], "normal": [0, 0, 1]}}},
-        "contact": [{"tool": "floor", "normal": {"law": "linear", "stiffness": stiffness},
-                     **({"friction": friction} if friction else {})}],
+        "tools": {"floor": floor or {"surface": {"shape": "plane", "point": [0, 0, 0], "normal": [0, 0, 1]}}},
+        "contact": [{"tool": "floor", "normal": normal or {"law": "linear", "stiffness": stiffness},
+                     "springs": springs, **({"friction": friction} if friction else {})}],
         "loads": loads,
         "steps": steps,
         "output": {"history_points": 400,

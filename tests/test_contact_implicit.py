@@ -18,7 +18,8 @@ from fdeck.compile.problem import compile_deck
 from fdeck.deck.model import Deck
 from fdeck.physics.effects.contact import normal_law, pack_law
 
-from helpers import digests_on_one_and_two_threads, run_data
+from helpers import digests_on_one_and_two_threads
+from test_contact import block as contact_block
 
 pytestmark = pytest.mark.verification
 
@@ -39,24 +40,10 @@ STICK = 0.05
 
 
 def block(steps, loads, friction=None, springs="implicit", extra=None, floor=None, law=LAW):
-    """The 10 x 10 x 5 mm block of test_contact (2 x 2 x 1 full hexahedra) held the law's clearance c0
-    above the plane z = 0, so that it starts at the law's first touch."""
-    data = {
-        "mesh": {"block": {"origin": [0.0, 0.0, law["c0"]], "size": [10.0, 10.0, 5.0], "divisions": [2, 2, 1]}},
-        "materials": {"m": {"type": "linear_elastic", "density": 1e-6, "youngs_modulus": 1000.0,
-                            "poisson_ratio": 0.3}},
-        "sections": [{"material": "m", "formulation": "full"}],
-        "tools": {"floor": floor or {"surface": {"shape": "plane", "point": [0, 0, 0], "normal": [0, 0, 1]}}},
-        "contact": [{"tool": "floor", "normal": law, "springs": springs,
-                     **({"friction": friction} if friction else {})}],
-        "loads": loads,
-        "steps": steps,
-        "output": {"history_points": 400,
-                   "measures": [{"type": "node_displacement", "name": "ux", "nodes": "all", "component": "x"},
-                                {"type": "node_displacement", "name": "uz", "nodes": "zmin", "component": "z"}]},
-    }
-    data.update(extra or {})
-    return run_data(data)
+    """test_contact's 10 x 10 x 5 mm block (2 x 2 x 1 full hexahedra) held the law's clearance c0 above the plane
+    z = 0, so that it starts at the law's first touch."""
+    return contact_block(steps, loads, friction=friction, z0=law["c0"], extra=extra, normal=law, springs=springs,
+                         floor=floor)
 
 
 def balance(h):

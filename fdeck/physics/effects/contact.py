@@ -259,8 +259,7 @@ class RigidContact(Effect):
 
     def __init__(self, tool, nodes, area, vec, offset, two_sided, law, friction, X, search, implicit=False):
         self.name, self.tool = f"contact:{tool.tool}", tool
-        self.implicit = implicit  # springs integrated by ``engine.springs`` (no spring step bound)
-        self.subcycling_safe = not implicit
+        self.implicit = implicit  # springs integrated by ``engine.springs`` (refused by subcycling)
         self.nodes, self.offset, self.two_sided = nodes, offset, two_sided
         self.vec = np.ascontiguousarray(vec)
         self.area = np.where(two_sided, area, np.linalg.norm(vec, axis=1))  # bound of the projected area
@@ -311,12 +310,15 @@ class RigidContact(Effect):
             lim = min(lim, self.search)
         return 0.5 * lim
 
+    def explicit_bound(self, m: np.ndarray) -> float:
+        """The springs' own bound sqrt(m / k) [s] over the contact nodes of masses m (k,) (inf without any)."""
+        touching = self.k_max > 0.0
+        return float(np.min(np.sqrt(m[touching] / self.k_max[touching]))) if touching.any() else math.inf
+
     def begin_step(self, index, plan):
         m = plan.mass[self.nodes]
         touching = self.k_max > 0.0
-        self.dt_spring = float(np.min(np.sqrt(m[touching] / self.k_max[touching]))) if touching.any() else math.inf
-        if self.implicit:
-            self.dt_spring = self.implicit_bound(m)
+        self.dt_spring = self.implicit_bound(m) if self.implicit else self.explicit_bound(m)
         speed = self.tool.speed_bound(plan.start, plan.start + plan.duration)
         self.dt_travel = self.travel_limit / speed if speed > 0.0 else math.inf
         self.dt = min(self.dt_spring, self.dt_travel)
@@ -415,9 +417,7 @@ class RigidContact(Effect):
                   if math.isfinite(self.dt_travel) else "")
         search = f", search distance {self.search:.3g} mm ({len(self.grid.T)} triangles)" if self.grid else ""
         if self.implicit:
-            m = plan.mass[self.nodes]
-            touching = self.k_max > 0.0
-            explicit = float(np.min(np.sqrt(m[touching] / self.k_max[touching]))) if touching.any() else math.inf
+            explicit = self.explicit_bound(plan.mass[self.nodes])
             bound = (f"springs implicit: step bound 2 sqrt(m/k_t) = {self.dt_spring:.4g} s from the stick springs "
                      f"(explicit springs: sqrt(m/k) = {explicit:.4g} s)")
         else:
