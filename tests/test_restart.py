@@ -217,15 +217,24 @@ def test_restart_from_half_time_is_bitwise(tmp_path, kind, threads, parallel_bel
         numba.set_num_threads(saved)
 
 
-def test_added_step_continues_a_finished_run(tmp_path):
+# step settings held per step by effects (engine.snapshot's ``deck_settings``), in the first step and the added one
+PER_STEP = ("damping: {mass_proportional: 1000}, deformation_damping: {rate: 200}, bulk_viscosity: {}, "
+            "mass_scaling: {factor: 4, selective: true}")
+
+
+@pytest.mark.parametrize("first", ["", PER_STEP], ids=["effect_added", "effects_in_both"])
+def test_added_step_continues_a_finished_run(tmp_path, first):
     """Requirement: a deck that adds a step after the last one restarts from the end of the finished 1-step run
     and ends bitwise equal (SHA-256 of x and v) to the 2-step run from scratch; the history rows after the
-    restart point are equal too (the rows before it are sampled over the 1-step duration, by design)."""
-    one = write_deck(tmp_path, HEX)
-    two_text = HEX.replace("  - {name: compress, duration: 8.0e-4}\n",
-                           "  - {name: compress, duration: 8.0e-4}\n  - {name: hold, duration: 5.0e-4, "
-                           "damping: {mass_proportional: 3000}}\n")
-    assert two_text != HEX
+    restart point are equal too (the rows before it are sampled over the 1-step duration, by design). Both when the
+    added step asks for an effect the first did not, and when effects hold a setting per step (a full-size forming
+    restart with an added dwell step once failed on the selective mass's per-step list, restored shorter)."""
+    base = HEX if not first else HEX.replace("duration: 8.0e-4}", "duration: 8.0e-4, " + first + "}")
+    one = write_deck(tmp_path, base)
+    hold = "damping: {mass_proportional: 3000}" + (", mass_scaling: {factor: 4, selective: true}" if first else "")
+    step = next(line for line in base.splitlines(keepends=True) if "name: compress" in line)
+    two_text = base.replace(step, step + "  - {name: hold, duration: 5.0e-4, " + hold + "}\n")
+    assert two_text.index("name: compress") < two_text.index("name: hold")
     two = write_deck(tmp_path / "b", two_text)
     out = tmp_path / "run"
     assert run(one, out)[0] == 0

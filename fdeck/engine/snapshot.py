@@ -10,7 +10,10 @@ state protocol, ``capture`` walks an object's attributes and records:
   tool, a group's material), each object once (the first path that reaches it, as walks are deterministic).
 
 Skipped: pydantic models (the deck's cards), frozen dataclasses (ledger terms), functions, numba dispatchers,
-modules, classes and objects of other packages. An object may refine this with ``state()`` / ``load_state(state)``;
+modules, classes and objects of other packages, and the attributes a class names in ``deck_settings``: values it
+reads from the deck per step (an effect's damping coefficient of each step), rebuilt from the deck a restart runs,
+which may have added steps (restored, such a list would be the checkpoint's shorter one). An object may refine this
+with ``state()`` / ``load_state(state)``;
 ``capture`` calls them when present. ``restore`` writes arrays back IN PLACE when shape and dtype match, so views
 and references other objects hold (a group bound to the engine's rotations) see the restored values; otherwise it
 rebinds the attribute. Constants restored to their own values are harmless, which is what makes the walk safe
@@ -58,7 +61,8 @@ def capture(obj, _seen=None):
         seen.add(id(obj))
         if callable(getattr(obj, "state", None)) and callable(getattr(obj, "load_state", None)):
             return (_OBJ, {"__state__": obj.state()})
-        attrs = {k: capture(v, seen) for k, v in vars(obj).items()}
+        skip = getattr(type(obj), "deck_settings", ())
+        attrs = {k: capture(v, seen) for k, v in vars(obj).items() if k not in skip}
         return (_OBJ, {k: s for k, s in attrs.items() if s is not None})
     return None
 

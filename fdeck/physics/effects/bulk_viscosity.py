@@ -87,6 +87,7 @@ def viscous_forces(x, v, conn, b, V0, L0, rho, dt_e, b1, b2, fe, power, xi):
 
 class BulkViscosity(Effect):
     """Bulk viscosity on the solid groups; coefficients (b1, b2) per step, zero in steps that do not ask for it."""
+    deck_settings = ("coefficients",)  # per step, from the deck: not saved (engine.snapshot)
 
     follows_element_steps = True  # its step is a share of the elements' own: mass tracking raises both (solver)
 

@@ -13,6 +13,7 @@ from fdeck.registry import EffectKind, register_effect
 
 
 class MassDamping(Effect):
+    deck_settings = ("alphas",)  # per step, from the deck: not saved (engine.snapshot)
     name = "damping"
     forces = "damping"
 

@@ -149,6 +149,7 @@ def relative_forces(x, v, w_rot, d, conn, w_node, j_node, c, fe, me, power):
 
 class DeformationDamping(Effect):
     """Deformation damping on every element group; rate c [1/s] per step, zero in steps that do not ask for it."""
+    deck_settings = ("rates",)  # per step, from the deck: not saved (engine.snapshot)
 
     follows_element_steps = True  # its step is a share of the elements' own: mass tracking raises both (solver)
 

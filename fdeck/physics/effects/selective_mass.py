@@ -50,6 +50,7 @@ omega_t)^2), where a target at the hinges' bound itself would need an infinite m
 
 
 class SelectiveMassEffect(Effect):
+    deck_settings = ("selective", "targets")  # per step, from the deck: not saved (engine.snapshot)
     name = "selective_mass"
     solves_mass = True  # the engine hands it the accelerations of every cycle (``engine.solver``)
     terms = (Term("added_kinetic_energy", VALUE), Term("cg_iterations_mean", VALUE),

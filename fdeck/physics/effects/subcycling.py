@@ -21,6 +21,7 @@ from fdeck.registry import EffectKind, register_effect
 
 
 class SubcyclingEffect(Effect):
+    deck_settings = ("caps", "top")  # per step, from the deck: not saved (engine.snapshot)
     name = "subcycling"
     subcycles = True  # the engine runs ``engine.subcycle.run`` when a problem has this effect
     terms = (Term("subcycling_levels", VALUE), Term("subcycling_element_cycles", VALUE),
