@@ -300,10 +300,29 @@ class _Signals:
             signal.signal(s, h)
 
 
-def find_restart(out_dir: Path, restart: str | bool, digests: dict, echo=print) -> dict:
+def fit_history(result: dict, columns: list[str], where: str) -> None:
+    """The checkpoint's history rows (``result["history"]``, (n_row, n_saved)) under the run's ``columns``: a column
+    that steps added after the checkpoint bring (an effect's work that starts with them, ``step_mass_work``) is 0.0 in
+    the earlier rows. RestartError when the checkpoint has a column the run has not."""
+    rows, saved = result["history"], result.get("columns")
+    if saved is None or list(saved) == list(columns):
+        if rows.shape[1] != len(columns):
+            raise RestartError(f"{where}: its history has {rows.shape[1]} columns, this run {len(columns)}")
+        return
+    gone = [c for c in saved if c not in columns]
+    if gone:
+        raise RestartError(f"{where}: its history has columns this run has not ({', '.join(gone)})")
+    fitted = np.zeros((len(rows), len(columns)))
+    for j, c in enumerate(saved):
+        fitted[:, columns.index(c)] = rows[:, j]
+    result["history"], result["columns"] = fitted, list(columns)
+
+
+def find_restart(out_dir: Path, restart: str | bool, digests: dict, columns: list[str], echo=print) -> dict:
     """The checkpoint payload to continue from: the file ``restart`` names, or (``restart`` True or "") the newest
-    intact one in ``out_dir`` (damaged newer ones are skipped with a message through ``echo``). RestartError when
-    there is none or it does not belong to the deck (``check_compatible``)."""
+    intact one in ``out_dir`` (damaged newer ones are skipped with a message through ``echo``), its history fitted
+    to the run's ``columns``. RestartError when there is none or it does not belong to the deck
+    (``check_compatible``)."""
     from fdeck.io.checkpoint import CheckpointError, latest_valid, read_checkpoint
 
     if isinstance(restart, str) and restart:
@@ -320,6 +339,7 @@ def find_restart(out_dir: Path, restart: str | bool, digests: dict, echo=print) 
     if "digests" not in payload or "engine" not in payload:
         raise RestartError(f"{path}: not an fdeck run checkpoint")
     check_compatible(payload["digests"], digests, str(path))
+    fit_history(payload["engine"]["result"], columns, str(path))
     echo(f"restarting from {path} (cycle {payload['engine']['result']['cycles']}, "
          f"t = {payload['engine']['scalars']['t']:.6g} s)")
     return payload
@@ -352,7 +372,8 @@ def _execute(deck, problem, t_compile, out_dir, name, deck_path, progress, echo,
     from fdeck.io.summary import write_json_atomic
 
     digests = deck_digests(deck, problem)
-    resume = None if restart is None or restart is False else find_restart(out_dir, restart, digests, echo)
+    resume = None if restart is None or restart is False else find_restart(out_dir, restart, digests,
+                                                                           solver.history_columns(problem), echo)
     out = Outputs(problem, out_dir, name, progress, digests, resume)
     start = time.perf_counter()
     walled = []

@@ -37,10 +37,12 @@ import numba
 import numpy as np
 
 from fdeck.engine import snapshot
+from fdeck.engine.effect import free_dofs
 from fdeck.engine.integrate import drift, kick
 from fdeck.engine.ledger import CORE, Ledger
 from fdeck.engine.rotation import Rotations, drift_rot, kick_rot
 from fdeck.engine.springs import Springs
+from fdeck.engine.step_mass import StepMassChange, changes_mass
 
 
 class RunStopped(Exception):
@@ -147,11 +149,14 @@ class Sink:
         "interrupted" or "completed"."""
 
 
-def ledger(problem) -> Ledger:
+def ledger(problem, step_mass: StepMassChange | None = None) -> Ledger:
     """The run's ledger: every group's and effect's terms, after the core columns and (with rotational dofs) the
-    rotational share of the kinetic energy."""
+    rotational share of the kinetic energy; with steps that change the mass, ``step_mass`` (a new one if None)."""
     extra = ("rotational_kinetic_energy",) if problem.rotations is not None else ()
-    return Ledger(list(problem.groups) + list(problem.effects), extra)
+    sources = list(problem.groups) + list(problem.effects)
+    if changes_mass(problem):  # the kinetic energy of a step's new masses (``engine.step_mass``)
+        sources.append(step_mass if step_mass is not None else StepMassChange())
+    return Ledger(sources, extra)
 
 
 def history_columns(problem) -> list[str]:
@@ -216,7 +221,8 @@ def _run(problem, sink: Sink, should_stop, resume) -> Result:
         return subcycle.run(problem, sink, should_stop, resume, sub)
     res = Result(columns=history_columns(problem))
     groups, effects = problem.groups, problem.effects
-    book = ledger(problem)
+    step_mass = StepMassChange() if changes_mass(problem) else None
+    book = ledger(problem, step_mass)
     forcing = [e for e in effects if e.forces is not None]
     constraints = [e for e in effects if e.constrains]
     movers = [e for e in effects if e.moves]
@@ -244,7 +250,7 @@ def _run(problem, sink: Sink, should_stop, resume) -> Result:
         for obj in list(groups) + list(effects):
             if obj.rotational:
                 obj.bind(rot)
-    objects = [list(groups), list(effects), list(problem.measures), rot]
+    objects = [list(groups), list(effects), list(problem.measures), rot, step_mass]
     ke_rot = 0.0
     timer = _Timer()
     T = problem.duration
@@ -312,7 +318,7 @@ def _run(problem, sink: Sink, should_stop, resume) -> Result:
                 "objects": snapshot.capture(objects), "ledger": book.state(),
                 "result": dict(cycles=res.cycles, dt_min=res.dt_min, dt_max=res.dt_max, message=res.message,
                                added_mass=list(res.added_mass), stopped_steps=list(res.stopped_steps),
-                               history=np.array(res.history, dtype=np.float64).reshape(len(res.history),
+                               columns=list(res.columns), history=np.array(res.history, dtype=np.float64).reshape(len(res.history),
                                                                                        len(res.columns))),
                 "times": dict(T=T, frames=len(frame_times), history=len(hist_times))}
 
@@ -324,6 +330,8 @@ def _run(problem, sink: Sink, should_stop, resume) -> Result:
                 t_step_end += plan.duration
                 continue
             t_step_end += plan.duration
+            if step_mass is not None and k > 0 and not (resume is not None and k == k0):
+                step_mass.open(m, rot, sms)  # booked in the step's first cycle (``close``)
             for g, rho in zip(groups, plan.rho):
                 g.set_density(rho)
             m = plan.mass
@@ -406,6 +414,9 @@ def _run(problem, sink: Sink, should_stop, resume) -> Result:
                     t0 = timer.add("integrator", t0)
                     springs.finish(v, dt, f_int, dx)
                     t0 = timer.add("contact springs (implicit)", t0)
+                if step_mass is not None and step_mass.m_old is not None:  # a step's first cycle: its new masses
+                    r = f_ext - f_int + f_damp
+                    step_mass.close(v, v_old, r, m, free_dofs(constraints, x), dt_avg, dx, rot, sms)
                 # ledger at t_n (kinetic energy needs v(n+1/2)), then positions move to t_(n+1)
                 w, dd, ke = drift(x, v, v_old, m, f_ext, f_int, f_damp, fe_prev, fd_prev, dx, reaction, dt, dt_avg,
                                   res.cycles == 0)

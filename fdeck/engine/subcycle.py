@@ -58,6 +58,7 @@ import time
 
 import numpy as np
 
+from fdeck.engine.step_mass import StepMassChange, changes_mass
 from fdeck.jit import njit
 
 # -- levels -------------------------------------------------------------------------------------------------------
@@ -377,7 +378,8 @@ def run(problem, sink, should_stop, resume, sub):
         res.status = "failed"
         res.message = "a run with subcycling cannot continue from a checkpoint (its per-level state is not saved)"
         return res
-    book = ledger(problem)
+    step_mass = StepMassChange() if changes_mass(problem) else None
+    book = ledger(problem, step_mass)
     forcing = [e for e in effects if e.forces is not None]
     movers = [e for e in effects if e.moves]
     constraints = [e for e in effects if e.constrains]
@@ -415,12 +417,15 @@ def run(problem, sink, should_stop, resume, sub):
         t_step_end = 0.0
         for k, plan in enumerate(problem.steps):
             t_step_end += plan.duration
+            m_old = m if k > 0 else None
             for g, rho in zip(groups, plan.rho):
                 g.set_density(rho)
             m = plan.mass
             inv_m = 1.0 / m
             for e in effects:
                 e.begin_step(k, plan)
+            if step_mass is not None and k > 0:  # the kinetic energy of the step's new masses (engine.step_mass)
+                step_mass.jump(v, m_old, m)
             if k == 0:
                 for g in groups:
                     update(g, 0.0)

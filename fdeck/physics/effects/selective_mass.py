@@ -78,12 +78,20 @@ class SelectiveMassEffect(Effect):
         self.tracking_work = 0.0  # [mJ] cumulative
         self.tracked_mass = 0.0  # [t] added by tracking, as the plan counts added mass (trace share)
         self.tracked = np.zeros(self.offsets[-1], bool)  # elements given mass by tracking (ever)
+        # per group (n_el,): the density tracking added during this step [t/mm^3], carried into a next step that
+        # tracks too (its elements are as stiff as they were), dropped before one that does not
+        self.extra = [np.zeros(len(g.conn)) for g in groups]
+        self.carry = False
         self.stiff = list(stiff)  # effects with a stiffness on element rotations (``own_omega2``): step bounds too
 
     def begin_step(self, index, plan):
         self.plan = plan
+        self.carry = index > 0 and self.targets[index] is not None and self.targets[index - 1] is not None
         self.track_dt = self.targets[index]
-        self.tracked_mass = 0.0
+        if not self.carry:
+            self.tracked_mass = 0.0
+            for a in self.extra:
+                a.fill(0.0)
 
     @property
     def active(self) -> bool:
@@ -93,10 +101,19 @@ class SelectiveMassEffect(Effect):
         """Set the step up (called by the engine after ``begin_step``): the prescribed dofs are those the
         constraints write (found by letting them write into NaNs; translational constraints only, as selective
         scaling is refused with rotations)."""
+        if self.plan.selective is None:  # a step without selective mass after one with it: lumped mass only
+            self.solver.set_step(None, [], self.plan.mass, None, self.plan.cg)
+            return
         free = free_dofs(constraints, x)
         # element masses of the translational (base) density rho / (1 + beta): physical, or uniformly scaled
         base = [g.mass(r / (1.0 + b)).sum(axis=1) for g, r, b in zip(self.groups, self.plan.rho, self.plan.selective)]
         self.solver.set_step(self.plan.selective, base, self.plan.mass, free, self.plan.cg)
+        if self.carry:  # the last step's tracked mass, on top of this step's own (engine.step_mass books any change)
+            for i, (g, extra) in enumerate(zip(self.groups, self.extra)):
+                low = np.flatnonzero(extra > 0.0)
+                if len(low):
+                    g.rho[low] += extra[low]
+                    self.solver.add(self.offsets[i] + low, extra[low] * self.unit_mass[i][low] / g.conn.shape[1])
 
     def term_values(self) -> tuple[float, ...]:
         s = self.solver
@@ -143,6 +160,7 @@ class SelectiveMassEffect(Effect):
             factor = ((ample if wb2 is None else ample[low]) / g.dt_e[low]) ** 2
             drho = g.rho[low] * (factor - 1.0)
             g.rho[low] += drho  # the group's own array (``set_density`` copies the plan's)
+            self.extra[i][low] += drho
             de = drho * self.unit_mass[i][low]  # added element mass [t]
             n = g.conn.shape[1]
             self.tracking_work += self.solver.add(self.offsets[i] + low, de / n, v, v_old)
