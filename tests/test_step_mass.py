@@ -48,7 +48,7 @@ def test_scaled_step_books_its_kinetic_energy():
     (2) conservation: with the second step's dt_safety 0.9 / sqrt(10) the step is the same on both sides (the
     variable-step central difference's own error at a jump of the step is then absent), so the balance error's
     move across the boundary (mean of 5 rows after minus 5 rows before) is within 1 % of the booked 2.46 mJ
-    (measured 0.1 %; unbooked it would be 100 %)."""
+    (measured 0.016 %; unbooked it would be 100 %)."""
     _, h = run_history(block({"factor": 10}, dt_safety=0.9 / np.sqrt(10)))
     b = boundary_rows(h)
     assert h["dt"][b + 2] == pytest.approx(h["dt"][b - 2], rel=0.02)  # the same step on both sides
@@ -68,14 +68,14 @@ def test_lighter_step_books_the_kinetic_energy_it_removes(f):
 
     Reference: conservation. Here the step grows with the lighter mass (x1.05 / x3.2), and the variable-step central
     difference's own error at such a jump remains (the first kick spans the old and the new half-steps): measured
-    1.6 % / 5.2 % of the booking, against 100 % unbooked and about 10 % for the first version of the booking (module
+    1.5 % / 4.5 % of the booking, against 100 % unbooked and about 10 % for the first version of the booking (module
     docstring of engine.step_mass); the bound is the larger case's with its last digit rounded up."""
     _, h = run_history(block({"factor": f}, first={"factor": 10}, duration=4e-4))
     b = boundary_rows(h, 4e-4)
     booked = h["step_mass_work"][-1]
     assert booked < 0
     err = h["energy_balance_error"]
-    move = err[b + 1:b + 8].mean() - err[b - 7:b].mean()
+    move = err[b:b + 7].mean() - err[b - 7:b].mean()
     assert abs(move) <= 0.06 * abs(booked), (move, booked)
 
 
@@ -95,17 +95,31 @@ def test_tracked_mass_carries_into_a_tracking_step():
     """Requirement: a tracking step followed by another that tracks keeps the mass tracking added (a forming stroke
     followed by a dwell): the step stays at the target across the boundary and no kinetic energy is booked.
 
-    References: the target (every stable step at or above it to round-off: without the carry the mass was
-    dropped and the step fell to 2.4e-6 s, measured); the added mass (the tracked share of the last row of the
-    pull equal to the first row of the hold to 1e-12); conservation (booked 0 to round-off, balance within 1e-5 of
-    the external work, the bound of the strip's tracking test)."""
+    References: the target (every stable step at or above it to round-off: a hold that does not track falls to
+    2.4e-6 s, measured); the added mass (the tracked share of the last row of the pull equal to the first row of the
+    hold to 1e-12); conservation (booked 0 to round-off; the balance within 1e-3 of the external work, the strip's
+    tracking test's bound)."""
     res, h = run_history(hold(warp_strip(TRACKED), TRACKED))
     b = int(np.searchsorted(h["time"], 0.01 * (1 - 1e-12)))
     assert res.dt_min >= TRACK_TARGET * (1 - 1e-9)
     assert h["tracked_added_mass"][b] == pytest.approx(h["tracked_added_mass"][b - 1], rel=1e-12)
     assert h["tracked_added_mass"][b] > 100  # per cent of the physical mass: tracking did add mass
     assert abs(h["step_mass_work"][-1]) <= 1e-12 * h["external_work"][-1]
-    assert np.abs(h["energy_balance_error"]).max() <= 1e-5 * h["external_work"][-1]
+    assert np.abs(h["energy_balance_error"]).max() <= 1e-3 * h["external_work"][-1]
+
+
+def test_tracking_restarts_with_another_target():
+    """Requirement: a tracking step followed by one tracking another target does not carry the mass (it was measured
+    against the old target's densities): the hold keeps its own target, 8e-6 s after 1.6e-5 s.
+
+    Reference: the new target (every stable step of the hold at or above it to round-off, the median within 1 % of
+    it: measured 8.017e-6 s; carried, the step stayed at 1.24e-5 s after the boundary, far from either target)."""
+    second = dict(TRACKED, target_dt=TRACK_TARGET / 2)
+    _, h = run_history(hold(warp_strip(TRACKED), second))
+    b = int(np.searchsorted(h["time"], 0.01 * (1 - 1e-12)))
+    dt = h["dt"][b + 1:-1]
+    assert dt.min() >= TRACK_TARGET / 2 * (1 - 1e-9)
+    assert np.median(dt) == pytest.approx(TRACK_TARGET / 2, rel=0.01)
 
 
 @pytest.mark.parametrize("second", [{"target_dt": TRACK_TARGET, "selective": True}, None],
@@ -113,12 +127,49 @@ def test_tracked_mass_carries_into_a_tracking_step():
 def test_step_after_tracking_drops_the_mass_and_books_it(second):
     """Requirement: a step that does not track after one that did drops the tracked mass (and a step without
     selective mass may follow one with it: it once failed in the selective mass's set-up), booking the kinetic
-    energy removed; the balance stays within 1e-5 of the external work (the strip is at rest: kinetic energy 1e-6
-    mJ against 223 mJ of work, so the booking is small and the bound is the tracking test's)."""
+    energy removed (negative work); the added kinetic energy column reads 0 in a lumped step.
+
+    References: the stiffened strip's own step (below half the target once the mass is gone); conservation: the
+    balance error moves across the boundary (mean of 10 rows after minus 10 before) by at most 20 % of the booking
+    (the strip is nearly at rest, kinetic energy 1e-4 mJ, so the booking is -1e-5 to -3e-5 mJ and the rows' noise
+    a few per cent of it; unbooked, the move would be the booking)."""
     res, h = run_history(hold(warp_strip(TRACKED), second))
+    b = int(np.searchsorted(h["time"], 0.01 * (1 - 1e-12)))
     assert res.dt_min < 0.5 * TRACK_TARGET  # the mass is gone: the stiffened strip's own step
-    assert h["step_mass_work"][-1] != 0.0
-    assert np.abs(h["energy_balance_error"]).max() <= 1e-5 * h["external_work"][-1]
+    booked = h["step_mass_work"][-1]
+    assert booked < 0.0
+    err = h["energy_balance_error"]
+    move = err[b:b + 10].mean() - err[b - 10:b].mean()
+    assert abs(move) <= 0.2 * abs(booked), (move, booked)
+    if second is None:
+        assert np.all(h["added_kinetic_energy"][b:] == 0.0)
+
+
+def test_prescribed_rotation_across_a_mass_change():
+    """Requirement: a shell step with other masses keeps a prescribed rotation exact (the boundary's free-dof probe
+    once advanced the prescribed angle as a side effect: the clamped edge then turned by the missed angle in one
+    cycle and the balance moved by 0.16 mJ against 0.09 mJ of work).
+
+    References: the prescribed angle 0.2 rad at the end (to 1e-12); conservation: the balance error's move across
+    the boundary within 1 % of the external work (measured 0.07 %)."""
+    data = {"mesh": {"plate": {"size": [20, 20], "divisions": [4, 4]}},
+            "materials": {"f": {"type": "fabric_membrane", "preset": "t300_3k"}},
+            "sections": [{"material": "f", "formulation": "sm", "preset": "t300_3k"}],
+            "boundary": [{"type": "fixed", "nodes": "xmin", "dofs": ["x", "y", "z", "rx", "rz"]},
+                         {"type": "displacement", "nodes": "xmin", "dofs": ["ry"], "value": 0.2, "amplitude": "up"}],
+            "amplitudes": {"up": {"type": "smooth_step", "t1": 4e-4}},
+            "steps": [{"name": "a", "duration": 2e-4}, {"name": "b", "duration": 2e-4, "mass_scaling": {"factor": 4}}],
+            "output": {"history_points": 1000}}
+    problem = compile_deck(Deck.model_validate(data))
+    res = solver.run(problem, solver.Sink())
+    assert res.status == "completed", res.message
+    h = {c: np.array(res.history)[:, i] for i, c in enumerate(res.columns)}
+    angles = [q.angle for e in problem.effects for q in [e] + list(getattr(e, "parts", []))
+              if hasattr(q, "angle") and q.mode == "displacement"]
+    assert angles and all(np.allclose(a, 0.2, rtol=0.0, atol=1e-12) for a in angles)
+    b = int(np.searchsorted(h["time"], 2e-4 * (1 - 1e-12)))
+    move = h["energy_balance_error"][b + 2] - h["energy_balance_error"][b - 2]
+    assert abs(move) <= 0.01 * h["external_work"][-1], (move, h["external_work"][-1])
 
 
 def test_steps_keeping_the_mass_have_no_column():
@@ -127,3 +178,23 @@ def test_steps_keeping_the_mass_have_no_column():
     for ms in (None, {"factor": 10}):
         problem = compile_deck(Deck.model_validate(block(ms, first=ms)))
         assert "step_mass_work" not in solver.history_columns(problem)
+
+
+@pytest.mark.parametrize("f, bound", [(9.0, 0.05), (1.0, 0.12)])
+def test_subcycled_steps_book_the_change(f, bound):
+    """Requirement: the subcycled loop (engine.subcycle) books a step's new masses too, by the boundary's estimate
+    1/2 sum (m_new - m_old) |v|^2 (engine.step_mass ``jump``: that loop's per-node kicks have no single step to
+    rescale), the cube of the tests above scaled 10 -> 9 and 10 -> 1 with subcycling in both steps.
+
+    Reference: conservation, the balance error's move across the boundary (7 rows each side) against the booking:
+    measured 3.1 % / 9.7 % (the estimate's half-step error, as the first version of the engine loop's booking had on
+    the same cube, plus the step's jump); bounds 5 % / 12 %; unbooked, 100 %."""
+    data = block({"factor": f}, first={"factor": 10}, duration=4e-4)
+    for step in data["steps"]:
+        step["subcycling"] = {"levels": 2}
+    _, h = run_history(data)
+    b = boundary_rows(h, 4e-4)
+    booked = h["step_mass_work"][-1]
+    err = h["energy_balance_error"]
+    move = err[b:b + 7].mean() - err[b - 7:b].mean()
+    assert booked < 0 and abs(move) <= bound * abs(booked), (move, booked)

@@ -42,7 +42,7 @@ def free_dofs(constraints: list, x: np.ndarray) -> np.ndarray:
     letting the constraints write into NaNs)."""
     probe = np.full(x.shape, np.nan)
     for c in constraints:
-        c.constrain(0.0, 1.0, x.copy(), probe)
+        c.probe(x.copy(), probe)
     return np.isnan(probe).astype(float)
 
 
@@ -63,6 +63,11 @@ class Effect:
 
     def constrain(self, t_next: float, dt: float, x: np.ndarray, v: np.ndarray) -> None:
         pass
+
+    def probe(self, x: np.ndarray, v: np.ndarray) -> None:
+        """Write into the translational velocities v (n_node, 3) what ``constrain`` writes there, changing nothing
+        else (``free_dofs``); a constraint whose ``constrain`` has side effects (an integrated angle) overrides it."""
+        self.constrain(0.0, 1.0, x, v)
 
     def advance(self, t_next: float, dt: float, dt_avg: float) -> None:
         pass

@@ -454,8 +454,9 @@ class SelectiveMass:
     def add(self, idx: np.ndarray, dc: np.ndarray, v=None, v_old=None) -> float:
         """Raise the added mass of elements idx (k,) by dc (k,) [t] (c_e = beta_e m_e / n) and the preconditioner
         with it; returns the kinetic energy it adds at the current velocities, 1/2 sum dc_e |(I - P_e) v_e|^2 [mJ]
-        (v_n as ``book`` takes it; 0 without velocities). O(k) work: the stroke's tracking raises a few elements on most cycles late in a
-        forming run, so a pass over every element here cost more than the rest of the stable-step update."""
+        (v_n as ``book`` takes it; 0 without velocities). O(k) work: the stroke's tracking raises a few elements on
+        most cycles late in a forming run, so a pass over every element here cost more than the rest of the
+        stable-step update."""
         self.c[idx] += dc
         nodes = self.conn[idx]
         np.add.at(self.diag, nodes.ravel(), (dc[:, None, None] * self._complement_diagonal(idx)).reshape(-1, 3))
@@ -503,13 +504,6 @@ class SelectiveMass:
         before the positions move: its current reaction lacks g (the previous one was completed by ``book``), so
         the trapezoidal increment lacks g . dx / 2 [mJ]."""
         return 0.5 * float(np.sum(self.g * dx))
-
-    def kinetic(self, v: np.ndarray) -> float:
-        """The added kinetic energy 1/2 v^T dM v [mJ] at velocities v (n_node, 3) [mm/s] (a step boundary's,
-        ``engine.step_mass``; ``book`` keeps its own last value)."""
-        ke = np.zeros(len(self.c))
-        _kinetic(np.ascontiguousarray(v), self.conn, self.X, self.Xc, self.Jinv, self.c, ke)
-        return float(ke.sum())
 
     def kinetic(self, v: np.ndarray, c: np.ndarray) -> float:
         """1/2 sum c_e |(I - P_e) v_e|^2 [mJ] for velocities v (n_node, 3) [mm/s] and factors c (n_el,) [t] (a step

@@ -318,7 +318,8 @@ def _run(problem, sink: Sink, should_stop, resume) -> Result:
                 "objects": snapshot.capture(objects), "ledger": book.state(),
                 "result": dict(cycles=res.cycles, dt_min=res.dt_min, dt_max=res.dt_max, message=res.message,
                                added_mass=list(res.added_mass), stopped_steps=list(res.stopped_steps),
-                               columns=list(res.columns), history=np.array(res.history, dtype=np.float64).reshape(len(res.history),
+                               columns=list(res.columns),
+                               history=np.array(res.history, dtype=np.float64).reshape(len(res.history),
                                                                                        len(res.columns))),
                 "times": dict(T=T, frames=len(frame_times), history=len(hist_times))}
 
@@ -344,6 +345,8 @@ def _run(problem, sink: Sink, should_stop, resume) -> Result:
                 sms.prepare(constraints, x)
             if springs is not None:
                 springs.prepare(constraints, x)
+            if step_mass is not None:
+                step_mass.set_up(sms)
             collapse = getattr(problem.deck.steps[k], "min_dt_ratio", 0.0)
             if resume is not None and k == k0:
                 # the step's set-up above, then the saved state over it (history variables, loop counters)

@@ -1,7 +1,8 @@
 """The kinetic energy a step's new masses give the model at its start, booked as work.
 
-A step may scale its mass otherwise than the one before (``mass_scaling`` per step; a step that tracks selective mass
-after one that did not, or before one that does not). The velocities carry over, so the kinetic energy
+A step may scale its mass otherwise than the one before (``mass_scaling`` per step: another factor or target, none,
+or a step that does not track after one that tracked selective mass; what tracking adds during a step it books
+itself, ``mass_tracking_work``). The velocities carry over, so the kinetic energy
 1/2 v^T M v jumps by about 1/2 v^T (M_new - M_old) v at the boundary: energy the model gains or loses by the deck's
 choice, not by any force. Unbooked, it showed as a jump of the balance error (a block compressed with mass scaling
 10 then 1: -0.48 -> -2.54 mJ at the boundary); booked here as the work column ``step_mass_work``, built only for
@@ -10,13 +11,15 @@ decks whose steps can change the mass (``changes_mass``).
 Booked as the ledger counts kinetic energy: the engine's kinetic energy at t_n uses the average of the half-step
 velocities v(n-1/2) and v(n+1/2), and the kick between them is made with the new step's masses. So in the new
 step's first cycle, once its velocities are updated (``close``), the booking is that kinetic energy minus the one
-the old masses would have given: on free dofs the kick scaled by m_new / m_old (a lumped kick is f dt / m), on
-prescribed dofs the same velocities, whose reactions m dv / dt - f then do other work over the last increment
-(subtracted). A first version booked 1/2 (m_new - m_old) |v(n-1/2)|^2 at the boundary: on a vibrating block scaled
-10 -> 1 it missed 10 % of the jump (the kick's half step). An old selective mass (``engine.selective_mass``) kicks
-by its diagonal in this estimate (its solve is not repeated), its kinetic energy 1/2 sum c_e |(I - P_e) v_e|^2 at
-the estimated velocities; rotational inertia enters by 1/2 sum (I_new - I_old) |w|^2. A boundary that changes no
-mass (a tracking step followed by another: ``physics.effects.selective_mass`` carries the tracked mass) books 0.
+the old masses would have given: on free dofs the old masses' kick dt f / m_old, on prescribed dofs the same
+velocities, whose reactions m dv / dt - f then do other work over the last increment (subtracted). A first version
+booked 1/2 (m_new - m_old) |v(n-1/2)|^2 at the boundary: on a vibrating block scaled 10 -> 1 it missed 10 % of the
+jump (the kick's half step). An old selective mass (``engine.selective_mass``) kicks by its diagonal in this
+estimate (its solve is not repeated), its kinetic energy 1/2 sum c_e |(I - P_e) v_e|^2 at the estimated
+velocities; rotational inertia enters by 1/2 sum (I_new - I_old) |w|^2 at the averaged angular velocities (the
+first version's estimate, without the kick's correction: not measured on shells). A boundary that changes no mass
+(a tracking step followed by another of the same target: ``physics.effects.selective_mass`` carries the tracked
+mass) books 0.
 """
 
 from __future__ import annotations
@@ -54,7 +57,8 @@ class StepMassChange:
 
     def __init__(self):
         self.work = 0.0  # [mJ] cumulative
-        self.m_old = self.c_old = self.diag_old = self.I_old = None  # from a boundary (``open``) to ``close``
+        # from a boundary (``open``) to ``close``: the old masses, and the selective factors the step starts with
+        self.m_old = self.c_old = self.diag_old = self.I_old = self.c_new = None
 
     def term_values(self) -> tuple[float]:
         return (self.work,)
@@ -68,6 +72,12 @@ class StepMassChange:
         self.diag_old = sms.solver.diag.copy() if active else None
         self.I_old = None if rot is None else rot.I.copy()
 
+    def set_up(self, sms=None) -> None:
+        """After the new step's set-up, before its first stable step (which may track, booking what it adds as
+        ``mass_tracking_work``): the selective factors the step starts with."""
+        if self.m_old is not None:
+            self.c_new = sms.solver.c.copy() if sms is not None and sms.active else None
+
     def close(self, v, v_old, r, m, free, dt_avg, dx, rot=None, sms=None) -> None:
         """In the new step's first cycle, velocities updated, before the engine's ledger (``drift``): book the kinetic
         energy the new masses m (n_node,) [t] gave against the old ones (module docstring). v, v_old (n_node, 3)
@@ -75,7 +85,7 @@ class StepMassChange:
         1.0 on free dofs; dx (n_node, 3) [mm]: the last increment."""
         if self.m_old is None:
             return
-        c_new = sms.solver.c if sms is not None and sms.active else None
+        c_new = self.c_new
         # (the carried tracked mass is re-added from its densities: equal to round-off, not bitwise)
         same = np.array_equal(m, self.m_old) and ((c_new is None and self.c_old is None) or (
             c_new is not None and self.c_old is not None and np.allclose(c_new, self.c_old, rtol=1e-12, atol=0.0)))
@@ -83,7 +93,7 @@ class StepMassChange:
             same = same and np.array_equal(rot.I, self.I_old)
         if not same:
             self.work += self._change(v, v_old, r, m, free, dt_avg, dx, rot, sms, c_new)
-        self.m_old = self.c_old = self.diag_old = self.I_old = None
+        self.m_old = self.c_old = self.diag_old = self.I_old = self.c_new = None
 
     def _change(self, v, v_old, r, m, free, dt_avg, dx, rot, sms, c_new) -> float:
         # the old masses' kick: lumped exactly, a selective old mass by its diagonal (the solve's preconditioner)

@@ -78,6 +78,9 @@ class PrescribedRotation(Effect):
         self.rot.w[idx] = w
         self.angle += dt * w
 
+    def probe(self, x, v):
+        pass  # no translational dof; ``constrain`` would advance the angle and write the rotations
+
 
 class Both(Effect):
     """A translational and a rotational constraint from one card (applied in that order)."""
@@ -94,6 +97,10 @@ class Both(Effect):
     def constrain(self, t_next, dt, x, v):
         for p in self.parts:
             p.constrain(t_next, dt, x, v)
+
+    def probe(self, x, v):
+        for p in self.parts:
+            p.probe(x, v)
 
 
 def build(card, ctx):

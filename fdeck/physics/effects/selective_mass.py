@@ -49,6 +49,15 @@ allow omega_b then needs its continuum slowed to omega_t sqrt(1 - 0.64) = 0.6 om
 omega_t)^2), where a target at the hinges' bound itself would need an infinite mass."""
 
 
+def same_plan(a, b) -> bool:
+    """Whether step plans a and b (``compile.problem.StepPlan``; a may be None) give the same densities, lumped masses
+    and selective factors."""
+    if a is None or a.selective is None or b.selective is None or not np.array_equal(a.mass, b.mass):
+        return False
+    return all(np.array_equal(p, q) for p, q in zip(a.rho, b.rho)) and \
+        all(np.array_equal(p, q) for p, q in zip(a.selective, b.selective))
+
+
 class SelectiveMassEffect(Effect):
     deck_settings = ("selective", "targets")  # per step, from the deck: not saved (engine.snapshot)
     name = "selective_mass"
@@ -85,8 +94,11 @@ class SelectiveMassEffect(Effect):
         self.stiff = list(stiff)  # effects with a stiffness on element rotations (``own_omega2``): step bounds too
 
     def begin_step(self, index, plan):
+        # the tracked mass carries where the next step tracks the same target on the same plan (a dwell after the
+        # stroke); with another target or plan the densities it was measured against are gone: tracking restarts
+        self.carry = (index > 0 and self.targets[index] is not None and self.targets[index] == self.targets[index - 1]
+                      and same_plan(self.plan, plan))
         self.plan = plan
-        self.carry = index > 0 and self.targets[index] is not None and self.targets[index - 1] is not None
         self.track_dt = self.targets[index]
         if not self.carry:
             self.tracked_mass = 0.0
@@ -103,6 +115,7 @@ class SelectiveMassEffect(Effect):
         scaling is refused with rotations)."""
         if self.plan.selective is None:  # a step without selective mass after one with it: lumped mass only
             self.solver.set_step(None, [], self.plan.mass, None, self.plan.cg)
+            self.ke = 0.0
             return
         free = free_dofs(constraints, x)
         # element masses of the translational (base) density rho / (1 + beta): physical, or uniformly scaled
