@@ -222,18 +222,25 @@ PER_STEP = ("damping: {mass_proportional: 1000}, deformation_damping: {rate: 200
             "mass_scaling: {factor: 4, selective: true}")
 
 
-@pytest.mark.parametrize("first", ["", PER_STEP], ids=["effect_added", "effects_in_both"])
-def test_added_step_continues_a_finished_run(tmp_path, first):
+SELECTIVE = "mass_scaling: {factor: 4, selective: true}"
+
+
+@pytest.mark.parametrize("first, hold", [
+    ("", "damping: {mass_proportional: 3000}"),
+    # the added step halves the selective mass: its kinetic energy is booked at the boundary (engine.step_mass)
+    (PER_STEP, "damping: {mass_proportional: 3000}, mass_scaling: {factor: 2, selective: true}"),
+    # deformation damping is built before the selective mass: an effect placed among the checkpoint's
+    (SELECTIVE, "deformation_damping: {rate: 200}, " + SELECTIVE)],
+    ids=["effect_added", "effects_in_both", "effect_inserted"])
+def test_added_step_continues_a_finished_run(tmp_path, first, hold):
     """Requirement: a deck that adds a step after the last one restarts from the end of the finished 1-step run
     and ends bitwise equal (SHA-256 of x and v) to the 2-step run from scratch; the history rows after the
-    restart point are equal too (the rows before it are sampled over the 1-step duration, by design). Both when the
-    added step asks for an effect the first did not, and when effects hold a setting per step (a full-size forming
-    restart with an added dwell step once failed on the selective mass's per-step list, restored shorter)."""
+    restart point are equal too (the rows before it are sampled over the 1-step duration, by design). When the
+    added step asks for an effect the first did not (also one built before the checkpoint's effects: a full-size
+    forming restart whose dwell added deformation damping once restored the selective mass into it), and when
+    effects hold a setting per step (one once failed on the selective mass's per-step list, restored shorter)."""
     base = HEX if not first else HEX.replace("duration: 8.0e-4}", "duration: 8.0e-4, " + first + "}")
     one = write_deck(tmp_path, base)
-    # with effects in both steps, the added step halves the selective mass: its kinetic energy is booked at the
-    # boundary (engine.step_mass), by the restart as by the run from scratch
-    hold = "damping: {mass_proportional: 3000}" + (", mass_scaling: {factor: 2, selective: true}" if first else "")
     step = next(line for line in base.splitlines(keepends=True) if "name: compress" in line)
     two_text = base.replace(step, step + "  - {name: hold, duration: 5.0e-4, " + hold + "}\n")
     assert two_text.index("name: compress") < two_text.index("name: hold")
@@ -252,7 +259,7 @@ def test_added_step_continues_a_finished_run(tmp_path, first):
     ha, hb = a["result"]["history"], b["result"]["history"]
     later_a, later_b = ha[ha[:, 0] > t1], hb[hb[:, 0] > t1]
     assert len(later_a) > 5 and later_a.tobytes() == later_b.tobytes()
-    if first:
+    if first == PER_STEP:
         assert later_a[-1, a["result"]["columns"].index("step_mass_work")] != 0.0
 
 

@@ -159,6 +159,18 @@ def ledger(problem, step_mass: StepMassChange | None = None) -> Ledger:
     return Ledger(sources, extra)
 
 
+def keyed(effects: list) -> dict:
+    """The effects by name and occurrence ("contact#1"): a checkpoint restores each effect by this key, not by its
+    place in the list, where an effect that an added step brings (damping) is placed among the others."""
+    count: dict[str, int] = {}
+    out = {}
+    for e in effects:
+        n = count.get(e.name, 0)
+        count[e.name] = n + 1
+        out[f"{e.name}#{n}"] = e
+    return out
+
+
 def history_columns(problem) -> list[str]:
     """History columns: the ledger's, then the reactions (forces, and moments with rotational dofs) of the sets
     named in ``output.reactions``, then the measures' columns."""
@@ -250,7 +262,7 @@ def _run(problem, sink: Sink, should_stop, resume) -> Result:
         for obj in list(groups) + list(effects):
             if obj.rotational:
                 obj.bind(rot)
-    objects = [list(groups), list(effects), list(problem.measures), rot, step_mass]
+    objects = [list(groups), keyed(effects), list(problem.measures), rot, step_mass]
     ke_rot = 0.0
     timer = _Timer()
     T = problem.duration
