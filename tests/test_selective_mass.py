@@ -701,3 +701,31 @@ def test_default_solve_tolerance_gives_the_answer_of_a_tight_solve():
         assert default[col][-1] == pytest.approx(former[col][-1], rel=1e-3), col
     assert default["cg_iterations_mean"][-1] <= 0.9 * former["cg_iterations_mean"][-1]
     assert max(h["cg_capped_cycles"][-1] for h in (default, former, tight)) == 0
+
+
+@pytest.mark.parametrize("added", [False, True])
+def test_damping_of_the_added_mass(added):
+    """Requirement: ``damping: {added_mass: true}`` damps with the whole mass matrix, f = -alpha (M + dM) v, and
+    without it with the lumped mass only; a step without selective mass refuses it, located.
+
+    Reference: the dissipation identity of mass-proportional damping, D = alpha int v^T M_d v dt = 2 alpha int KE_d dt
+    with KE_d the kinetic energy of the damped mass (the ledger's whole kinetic energy with the added mass, its
+    lumped share without), on a rubber cube squeezed at 800 mm/s (vibrating; selective factor 4, alpha 3000 1/s,
+    44 cycles): the booked damping energy within 1 % of it (measured 0.3 % / 0.4 %: the trapezoid over the cycles);
+    the other mass's identity misses by 20 % or more, so the test tells the two apart."""
+    from test_step_mass import block
+
+    data = block(None)
+    data["steps"] = [{"name": "a", "duration": 8e-4, "mass_scaling": {"factor": 4, "selective": True},
+                      "damping": {"mass_proportional": 3000.0, "added_mass": added}}]
+    _, h = run_history(data)
+    ke, lumped = h["kinetic_energy"], h["kinetic_energy"] - h["added_kinetic_energy"]
+    whole, share = (2 * 3000.0 * np.trapezoid(k, h["time"]) for k in (ke, lumped))
+    damped, other = (whole, share) if added else (share, whole)
+    assert h["damping_energy"][-1] == pytest.approx(damped, rel=0.01)
+    assert abs(h["damping_energy"][-1] - other) > 0.2 * damped
+    if added:
+        data["steps"][0]["mass_scaling"] = {"factor": 4}
+        with pytest.raises(CompileError) as exc:
+            compile_deck(Deck.model_validate(data))
+        assert exc.value.problems[0][0] == ("steps", 0, "damping", "added_mass")

@@ -12,6 +12,10 @@ from fdeck.registry import CardEntry, register_card
 class Damping(Card):
     mass_proportional: float = Field(ge=0, description="alpha in f = -alpha m v [1/s]; 2 w damps a mode of "
                                      "angular frequency w critically.")
+    added_mass: bool = Field(False, description="Damp the selective mass scaling's added mass too, f = -alpha (M + "
+                             "dM) v (physics.effects.damping): the deformation modes that carry it then decay at "
+                             "alpha as the rest, rigid motion is dragged as without it; for a dwell that brings a "
+                             "blank with added mass to rest. Needs selective mass scaling in the same step.")
 
 
 class DeformationDamping(Card):

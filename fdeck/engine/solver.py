@@ -239,6 +239,9 @@ def _run(problem, sink: Sink, should_stop, resume) -> Result:
     constraints = [e for e in effects if e.constrains]
     movers = [e for e in effects if e.moves]
     sms = next((e for e in effects if getattr(e, "solves_mass", False)), None)  # selective mass scaling
+    for e in effects if sms is not None else ():
+        if hasattr(e, "bind_selective"):  # damping of the added mass (physics.effects.damping)
+            e.bind_selective(sms)
     implicit = [e for e in effects if getattr(e, "implicit", False)]  # contact pairs with implicit springs
     # under mass tracking: effects whose step is a share of the elements' own (bulk viscosity) follow the added
     # mass, the hinges of fibre bending (``sms.stiff``) cap it, the others (contact) bound it
