@@ -15,7 +15,9 @@ class Damping(Card):
     added_mass: bool = Field(False, description="Damp the selective mass scaling's added mass too, f = -alpha (M + "
                              "dM) v (physics.effects.damping): the deformation modes that carry it then decay at "
                              "alpha as the rest, rigid motion is dragged as without it; for a dwell that brings a "
-                             "blank with added mass to rest. Needs selective mass scaling in the same step.")
+                             "blank with added mass to rest, not for a stroke (it also resists the non-rigid "
+                             "deformation rates, with the added mass's weight). Needs selective mass scaling in "
+                             "the same step.")
 
 
 class DeformationDamping(Card):

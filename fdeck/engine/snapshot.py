@@ -10,9 +10,10 @@ state protocol, ``capture`` walks an object's attributes and records:
   tool, a group's material), each object once (the first path that reaches it, as walks are deterministic).
 
 Skipped: pydantic models (the deck's cards), frozen dataclasses (ledger terms), functions, numba dispatchers,
-modules, classes and objects of other packages, and the attributes a class names in ``deck_settings``: values it
-reads from the deck per step (an effect's damping coefficient of each step), rebuilt from the deck a restart runs,
-which may have added steps (restored, such a list would be the checkpoint's shorter one). An object may refine this
+modules, classes and objects of other packages, and the attributes a class names in ``deck_settings``: what it is
+given at set-up, not what it evolves: values it reads from the deck per step (an effect's damping coefficient of
+each step), rebuilt from the deck a restart runs, which may have added steps (restored, such a list would be the
+checkpoint's shorter one), and links the engine binds (damping's selective mass, saved with its own effect). An object may refine this
 with ``state()`` / ``load_state(state)``;
 ``capture`` calls them when present. ``restore`` writes arrays back IN PLACE when shape and dtype match, so views
 and references other objects hold (a group bound to the engine's rotations) see the restored values; otherwise it

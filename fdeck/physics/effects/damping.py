@@ -20,7 +20,7 @@ from fdeck.registry import EffectKind, register_effect
 
 
 class MassDamping(Effect):
-    deck_settings = ("alphas", "added")  # per step, from the deck: not saved (engine.snapshot)
+    deck_settings = ("alphas", "added", "sms")  # per step from the deck, and a link: not saved (engine.snapshot)
     name = "damping"
     forces = "damping"
 
@@ -56,8 +56,6 @@ class MassDamping(Effect):
 def build(cards: list, ctx) -> MassDamping | None:
     """The effect, or None when no step damps. cards: each step's ``damping`` card or None."""
     alphas = [c.mass_proportional if c is not None else 0.0 for c in cards]
-    if not any(a > 0 for a in alphas):
-        return None
     added = [c is not None and c.added_mass for c in cards]
     problems = [(("steps", i, "damping", "added_mass"), "damping of the added mass needs selective mass scaling "
                  "in the same step (mass_scaling with `selective` or `selective_target_dt`)")
@@ -65,6 +63,8 @@ def build(cards: list, ctx) -> MassDamping | None:
                 if on and (step.mass_scaling is None or not step.mass_scaling.is_selective)]
     if problems:
         raise CompileError(problems)
+    if not any(a > 0 for a in alphas):
+        return None
     return MassDamping(alphas, rotational=ctx.rotations is not None, added=added)
 
 
