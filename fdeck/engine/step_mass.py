@@ -28,23 +28,28 @@ import numpy as np
 
 from fdeck.engine.ledger import WORK, Term
 
-__all__ = ["StepMassChange", "changes_mass"]
+__all__ = ["StepMassChange", "changes_mass", "same_masses"]
+
+
+def same_masses(a, b) -> bool:
+    """Whether step plans a and b (``compile.problem.StepPlan``) give the same densities, lumped masses, inertias and
+    selective factors."""
+    def equal(p, q) -> bool:
+        if p is None or q is None:
+            return p is q
+        if isinstance(p, list):
+            return len(p) == len(q) and all(np.array_equal(x, y) for x, y in zip(p, q))
+        return np.array_equal(p, q)
+
+    return all(equal(getattr(a, k), getattr(b, k)) for k in ("mass", "inertia", "rho", "selective"))
 
 
 def changes_mass(problem) -> bool:
-    """Whether a step boundary of ``problem`` may change the mass: two consecutive steps with different lumped
-    masses, inertias or selective factors, or a step that tracks selective mass (it adds mass during the step)
-    followed by another."""
+    """Whether a step boundary of ``problem`` may change the mass: two consecutive steps whose masses differ
+    (``same_masses``), or a step that tracks selective mass (it adds mass during the step) followed by another."""
     plans = problem.steps
-    for a, b in zip(plans, plans[1:]):
-        if not np.array_equal(a.mass, b.mass) or (a.inertia is None) != (b.inertia is None):
-            return True
-        if a.inertia is not None and not np.array_equal(a.inertia, b.inertia):
-            return True
-        if (a.selective is None) != (b.selective is None):
-            return True
-        if a.selective is not None and not all(np.array_equal(p, q) for p, q in zip(a.selective, b.selective)):
-            return True
+    if not all(same_masses(a, b) for a, b in zip(plans, plans[1:])):
+        return True
     tracking = [getattr(e, "targets", None) for e in problem.effects if getattr(e, "solves_mass", False)]
     return any(t is not None and any(x is not None for x in t[:-1]) for t in tracking)
 

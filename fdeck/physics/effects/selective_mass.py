@@ -31,6 +31,7 @@ from fdeck.compile.errors import CompileError
 from fdeck.engine.effect import Effect, free_dofs
 from fdeck.engine.ledger import VALUE, WORK, Term
 from fdeck.engine.selective_mass import SelectiveMass
+from fdeck.engine.step_mass import same_masses
 from fdeck.registry import EffectKind, register_effect
 
 
@@ -47,15 +48,6 @@ REACH = 0.8
 """With fibre bending, the tracked step is kept at most at 0.8 x the hinges' own step: an element whose hinges alone
 allow omega_b then needs its continuum slowed to omega_t sqrt(1 - 0.64) = 0.6 omega_t (beta ~ 3 (omega_g /
 omega_t)^2), where a target at the hinges' bound itself would need an infinite mass."""
-
-
-def same_plan(a, b) -> bool:
-    """Whether step plans a and b (``compile.problem.StepPlan``; a may be None) give the same densities, lumped masses
-    and selective factors."""
-    if a is None or a.selective is None or b.selective is None or not np.array_equal(a.mass, b.mass):
-        return False
-    return all(np.array_equal(p, q) for p, q in zip(a.rho, b.rho)) and \
-        all(np.array_equal(p, q) for p, q in zip(a.selective, b.selective))
 
 
 class SelectiveMassEffect(Effect):
@@ -97,7 +89,7 @@ class SelectiveMassEffect(Effect):
         # the tracked mass carries where the next step tracks the same target on the same plan (a dwell after the
         # stroke); with another target or plan the densities it was measured against are gone: tracking restarts
         self.carry = (index > 0 and self.targets[index] is not None and self.targets[index] == self.targets[index - 1]
-                      and same_plan(self.plan, plan))
+                      and self.plan is not None and same_masses(self.plan, plan))
         self.plan = plan
         self.track_dt = self.targets[index]
         if not self.carry:
