@@ -277,6 +277,7 @@ def info(deck: Path = typer.Argument(..., help="Deck file.")):
     cycles, mem = 0, 0
     for k, (plan, step) in enumerate(zip(p.steps, d.steps)):
         alpha = step.damping.mass_proportional if step.damping else 0.0
+        on = " (on M + dM: the added mass too)" if step.damping and step.damping.added_mass else ""
         deform = f", deformation damping {step.deformation_damping.rate:g} 1/s" if step.deformation_damping else ""
         dts = []
         for i, (g, rho) in enumerate(zip(p.groups, plan.rho)):
@@ -289,7 +290,7 @@ def info(deck: Path = typer.Argument(..., help="Deck file.")):
                 dt, by = plan.dt_safety * e.stable_dt(), f" (set by {e.name})"
         cycles += int(np.ceil(plan.duration / dt))
         typer.echo(f"  step {plan.name}: rest stable dt {dt:.4g} s{by}, ~{int(np.ceil(plan.duration / dt))} cycles, "
-                   f"added mass {100 * plan.added_mass:.3g} %, damping alpha {alpha:g} 1/s{deform}"
+                   f"added mass {100 * plan.added_mass:.3g} %, damping alpha {alpha:g} 1/s{on}{deform}"
                    + (f", max_cycles {plan.max_cycles}" if plan.max_cycles else ""))
     for g in p.groups:
         mem += sum(a.nbytes for a in vars(g).values() if isinstance(a, np.ndarray) and a.base is None)

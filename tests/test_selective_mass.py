@@ -9,6 +9,7 @@ import copy
 import numpy as np
 import pytest
 import scipy.linalg
+import yaml
 
 from fdeck.compile.errors import CompileError
 from fdeck.compile.problem import compile_deck
@@ -704,7 +705,7 @@ def test_default_solve_tolerance_gives_the_answer_of_a_tight_solve():
 
 
 @pytest.mark.parametrize("added", [False, True])
-def test_damping_of_the_added_mass(added):
+def test_damping_of_the_added_mass(added, tmp_path):
     """Requirement: ``damping: {added_mass: true}`` damps with the whole mass matrix, f = -alpha (M + dM) v, and
     without it with the lumped mass only; a step without selective mass refuses it, located.
 
@@ -724,6 +725,11 @@ def test_damping_of_the_added_mass(added):
     damped, other = (whole, share) if added else (share, whole)
     assert h["damping_energy"][-1] == pytest.approx(damped, rel=0.01)
     assert abs(h["damping_energy"][-1] - other) > 0.2 * damped
+    from test_cli import fdeck
+
+    (tmp_path / "d.yaml").write_text(yaml.safe_dump(data))
+    r = fdeck("info", tmp_path / "d.yaml")  # says which mass the step damps
+    assert r.returncode == 0 and ("(on M + dM" in r.stdout) == added, r.stdout + r.stderr
     if added:
         data["steps"][0]["mass_scaling"] = {"factor": 4}
         with pytest.raises(CompileError) as exc:

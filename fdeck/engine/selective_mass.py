@@ -410,6 +410,7 @@ class SelectiveMass:
         self.a_last = np.zeros((n_node, 3))  # the two cycles before (warm-start extrapolation)
         self.a_last2 = np.zeros((n_node, 3))
         self.g = np.zeros((n_node, 3))
+        self._product = np.zeros((n_node, 3))  # dM p of ``product``
         self._work = [np.zeros((n_el, ROW))] + [np.zeros((n_node, 3)) for _ in range(4)]
         self._part = np.zeros((n_node + CHUNK - 1) // CHUNK)
         self._ke = np.zeros(n_el)
@@ -429,8 +430,10 @@ class SelectiveMass:
         return projector_diagonal(self.X[conn] - self.Xc[idx][:, None, :], self.Jinv[idx])
 
     def product(self, p: np.ndarray) -> np.ndarray:
-        """dM p (n_node, 3) [N] for p (n_node, 3) [mm/s^2]: the solve's own element rows and node sums."""
-        rows, y = np.zeros((len(self.conn), ROW)), np.zeros_like(p)
+        """dM p (n_node, 3) [N] for p (n_node, 3) [mm/s^2]: the solve's own element rows and node sums. The result
+        is a buffer of the solver's, overwritten by the next call (the damping of the added mass calls this every
+        cycle of a dwell: no allocation); the element rows use the solve's scratch, free between solves."""
+        rows, y = self._work[0], self._product
         element_rows(p, self.conn, self.X, self.Xc, self.Jinv, self.c, rows)
         gather_added(rows, self.ptr, self.elems, self.X, p, y)
         return y
