@@ -9,6 +9,7 @@
     python studies/forming.py ellipticity RESULT_DIR FRAMES [--box B] [--preset 3weave]  # elements past the law's limit
     python studies/forming.py rows PATH_NAME RESULT_DIR... [--until S]  # element-to-element alternation along a path
     python studies/forming.py waves RESULT_DIR --at Y... [--start X0] [--frame K]  # a shell flange's profile
+    python studies/forming.py energies RESULT_DIR... [--frame K]  # a hexahedral blank's strain energy by law term
 
 `render` reads a blank frame of a run's `.pvd` (the last, or ``--frame K``; the blank is part 0, tools are other
 parts), draws every element as the polygon of its nodes projected on the view plane (their 2-D convex hull),
@@ -38,6 +39,10 @@ whose acoustic tensor has lost strong ellipticity (smallest eigenvalue over 48 u
 plane, below zero; tangent by central differences of the point kernel). `waves` takes a shell blank's
 out-of-plane profile along rows of nodes (reference y nearest to each Y, from x = X0 on) and prints its rms,
 dominant wavelength and the share of its variance below three node spacings: a wave from node-scale scatter.
+`energies` integrates each energy density a hexahedral blank's frame holds (``strain_energy_density`` and the
+fabric law's terms ``psi_*``, point averages weighted by the points' reference volumes) over the reference volume
+of each element (2 x 2 x 2 Gauss points on the reference mesh, so distorted and collapsed hexahedra count right)
+and prints one column per run [mJ] with its change from the first run: which part of the energy a refinement moves.
 """
 
 from __future__ import annotations
@@ -340,6 +345,25 @@ def ellipticity(result_dir, frames, box=None, preset="3weave") -> list[tuple[int
     return out
 
 
+def energies(result_dirs, frame: int = -1) -> list[dict[str, float]]:
+    """Per run, {field: integral over the blank's reference volume [mJ]} of its hexahedra's energy densities [MPa]
+    (``strain_energy_density`` and ``psi_*``) in frame ``frame``."""
+    import meshio
+
+    from fdeck.physics.elements.hex8 import shape_gradients_local
+
+    g = 1.0 / np.sqrt(3.0)
+    dxi = shape_gradients_local(np.array([[a, b, c] for a in (-g, g) for b in (-g, g) for c in (-g, g)]))
+    out = []
+    for d in result_dirs:
+        X, conn, files = _reference_frames(d)
+        V0 = np.linalg.det(np.einsum("eai,qaj->eqij", X[conn], dxi)).sum(axis=1)  # (n_el,) [mm^3]
+        cells = meshio.read(files[frame]).cell_data_dict
+        out.append({k: float(np.dot(v["hexahedron"], V0)) for k, v in cells.items()
+                    if (k == "strain_energy_density" or k.startswith("psi_")) and "hexahedron" in v})
+    return out
+
+
 def parser() -> argparse.ArgumentParser:
     """The command line of this script (one subcommand per function above)."""
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -379,6 +403,9 @@ def parser() -> argparse.ArgumentParser:
     wa.add_argument("--at", type=float, nargs="+", required=True, help="reference y of each line [mm]")
     wa.add_argument("--start", type=float, default=0.0, help="reference x where the lines start [mm]")
     wa.add_argument("--frame", type=int, default=-1)
+    en = sub.add_parser("energies")
+    en.add_argument("result_dirs", nargs="+")
+    en.add_argument("--frame", type=int, default=-1, help="blank frame index (default the last)")
     ro = sub.add_parser("rows")
     ro.add_argument("name", help="path name (output.paths[].name), element-wise (no window)")
     ro.add_argument("result_dirs", nargs="+")
@@ -415,6 +442,12 @@ def main() -> None:
             print(f"y = {w['y']:g} mm ({w['nodes']} nodes): rms {w['rms']:.3f} mm, peak to peak "
                   f"{w['peak_to_peak']:.3f} mm, dominant wavelength {w['wavelength']:.1f} mm, "
                   f"{100 * w['short_share']:.0f} % of the variance below 3 node spacings")
+    elif a.cmd == "energies":
+        runs = energies(a.result_dirs, a.frame)
+        print("energy [mJ]".ljust(28) + "".join(f"{Path(d).name[-22:]:>24s}" for d in a.result_dirs))
+        for k in runs[0]:
+            print(k.ljust(28) + "".join(f"{r.get(k, np.nan):11.1f} ({100 * (r.get(k, np.nan) / runs[0][k] - 1):+6.1f} %)"
+                                        if runs[0][k] else f"{r.get(k, np.nan):24.1f}" for r in runs))
     elif a.cmd == "force":
         force(a.paths[:-1], a.paths[-1], a.tool)
     else:

@@ -587,3 +587,37 @@ def test_flange_waves_tell_a_resolved_wave_from_node_scale_scatter(tmp_path):
     assert forming.waves(tmp_path / "wave", [1.0], 0.0) == [w]  # y = 1 mm: the nearest row of nodes, y = 0
     assert w["short_share"] < 0.01
     assert z["rms"] == pytest.approx(0.3, rel=0.01) and z["short_share"] > 0.95
+
+
+def test_energies_integrate_each_fabric_term_over_the_reference_volume(tmp_path):
+    """Requirement: ``studies/forming.py energies`` (the split of a forming run's strain energy by law term, README)
+    gives, per energy density of a hexahedral blank's frame, its integral over the reference volume. A 3WEAVE F-bar
+    block (4 x 3 x 4 elements of 2.5 x 2 x 0.635 mm) at a prescribed deformation that loads every term (warp and
+    weft stretch, compaction, in-plane and transverse shear, a bend): the integral of ``strain_energy_density``
+    against the engine's own quadrature, sum over elements and points of w psi, to round-off (1e-12 relative: the
+    same numbers summed in another order); the law's six terms against that total to 1e-12 (the law is a sum of
+    them); the initial frame's energy is zero."""
+    data = {"mesh": {"block": {"size": [10.0, 6.0, 2.54], "divisions": [4, 3, 4]}},
+            "materials": {"f": {"type": "3weave"}}, "sections": [{"material": "f", "formulation": "fbar"}],
+            "steps": [{"duration": 0.01}]}
+    problem = _compile(data)
+    X = problem.X
+    x = X + np.stack([0.02 * X[:, 0] + 0.15 * X[:, 1] + 0.05 * X[:, 2] + 0.01 * X[:, 0] * (X[:, 2] - 1.27),
+                      0.015 * X[:, 1] + 0.04 * X[:, 2], -0.08 * (X[:, 2]) - 0.004 * X[:, 0] ** 2], axis=1)
+    _update(problem, x)
+    (g,) = problem.groups
+    fields = g.cell_fields()
+    conn = {"hexahedron": g.conn}
+    series = open_series(["vtu"], tmp_path / "run", "b", X, conn)
+    for s in series:
+        s.write(0.0, {"displacement": np.zeros_like(X)}, {k: np.zeros_like(v) for k, v in fields.items()})
+        s.write(1.0, {"displacement": x - X}, fields)
+        s.close()
+    forming = _forming_script()
+    (first,), (last,) = forming.energies([tmp_path / "run"], 0), forming.energies([tmp_path / "run"])
+    total = float(np.sum(g.w * g.psi))
+    assert last["strain_energy_density"] == pytest.approx(total, rel=1e-12) and total > 0
+    terms = [k for k in last if k.startswith("psi_")]
+    assert len(terms) == 6 and min(last[k] for k in terms) > 0  # every term loaded
+    assert sum(last[k] for k in terms) == pytest.approx(total, rel=1e-12)
+    assert not any(first.values())
