@@ -277,7 +277,7 @@ def info(deck: Path = typer.Argument(..., help="Deck file.")):
     cycles, mem = 0, 0
     for k, (plan, step) in enumerate(zip(p.steps, d.steps)):
         alpha = step.damping.mass_proportional if step.damping else 0.0
-        on = " (on M + dM: the added mass too)" if step.damping and step.damping.added_mass else ""
+        on = " (on M + dM: the added mass too)" if alpha > 0 and step.damping.added_mass else ""
         deform = f", deformation damping {step.deformation_damping.rate:g} 1/s" if step.deformation_damping else ""
         dts = []
         for i, (g, rho) in enumerate(zip(p.groups, plan.rho)):

@@ -358,8 +358,10 @@ def energies(result_dirs, frame: int = -1) -> list[dict[str, float]]:
     for d in result_dirs:
         X, conn, files = _reference_frames(d)
         V0 = np.linalg.det(np.einsum("eai,qaj->eqij", X[conn], dxi)).sum(axis=1)  # (n_el,) [mm^3]
+        if not -len(files) <= frame < len(files):
+            raise SystemExit(f"energies: {d} has frames 0..{len(files) - 1}, not {frame}")
         cells = meshio.read(files[frame]).cell_data_dict
-        out.append({k: float(np.dot(v["hexahedron"], V0)) for k, v in cells.items()
+        out.append({k: float(np.nansum(v["hexahedron"] * V0)) for k, v in cells.items()  # NaN: not this group's
                     if (k == "strain_energy_density" or k.startswith("psi_")) and "hexahedron" in v})
     return out
 
@@ -445,9 +447,10 @@ def main() -> None:
     elif a.cmd == "energies":
         runs = energies(a.result_dirs, a.frame)
         print("energy [mJ]".ljust(28) + "".join(f"{Path(d).name[-22:]:>24s}" for d in a.result_dirs))
-        for k in runs[0]:
-            print(k.ljust(28) + "".join(f"{r.get(k, np.nan):11.1f} ({100 * (r.get(k, np.nan) / runs[0][k] - 1):+6.1f} %)"
-                                        if runs[0][k] else f"{r.get(k, np.nan):24.1f}" for r in runs))
+        for k in dict.fromkeys(k for r in runs for k in r):  # every run's fields, first seen first
+            ref = runs[0].get(k, np.nan)
+            print(k.ljust(28) + "".join(f"{r.get(k, np.nan):13.1f} ({100 * (r.get(k, np.nan) / ref - 1):+6.1f} %)"
+                                        if ref else f"{r.get(k, np.nan):24.1f}" for r in runs))
     elif a.cmd == "force":
         force(a.paths[:-1], a.paths[-1], a.tool)
     else:

@@ -48,7 +48,9 @@ class MassDamping(Effect):
         if self.alpha > 0.0:
             f -= self.alpha * self.mass[:, None] * v
             if self.with_added and self.sms is not None and self.sms.active:
-                f -= self.alpha * self.sms.solver.product(v)
+                y = self.sms.solver.product(v)  # the solver's buffer: scaled in place, no temporary
+                y *= self.alpha
+                f -= y
             if self.rot is not None:
                 self.rot.m_damp -= self.alpha * self.rot.I[:, None] * self.rot.w
 
