@@ -41,8 +41,7 @@ out-of-plane profile along rows of nodes (reference y nearest to each Y, from x 
 dominant wavelength and the share of its variance below three node spacings: a wave from node-scale scatter.
 `energies` integrates each energy density a hexahedral blank's frame holds (``strain_energy_density`` and the
 fabric law's terms ``psi_*``, point averages weighted by the points' reference volumes) over the reference volume
-of each element (2 x 2 x 2 Gauss points on the reference mesh, so distorted and collapsed hexahedra count right)
-and prints one column per run [mJ] with its change from the first run: which part of the energy a refinement moves.
+of each element (the engine's own, ``hex8.prepare``: distorted and collapsed hexahedra count right) and prints one column per run [mJ] with its change from the first run: which part of the energy a refinement moves.
 """
 
 from __future__ import annotations
@@ -350,16 +349,14 @@ def energies(result_dirs, frame: int = -1) -> list[dict[str, float]]:
     (``strain_energy_density`` and ``psi_*``) in frame ``frame``."""
     import meshio
 
-    from fdeck.physics.elements.hex8 import shape_gradients_local
+    from fdeck.physics.elements.hex8 import prepare
 
-    g = 1.0 / np.sqrt(3.0)
-    dxi = shape_gradients_local(np.array([[a, b, c] for a in (-g, g) for b in (-g, g) for c in (-g, g)]))
     out = []
     for d in result_dirs:
         X, conn, files = _reference_frames(d)
-        V0 = np.linalg.det(np.einsum("eai,qaj->eqij", X[conn], dxi)).sum(axis=1)  # (n_el,) [mm^3]
         if not -len(files) <= frame < len(files):
             raise SystemExit(f"energies: {d} has frames 0..{len(files) - 1}, not {frame}")
+        V0 = prepare(X, conn)["V0"]  # (n_el,) [mm^3], the engine's own reference volumes
         cells = meshio.read(files[frame]).cell_data_dict
         out.append({k: float(np.nansum(v["hexahedron"] * V0)) for k, v in cells.items()  # NaN: not this group's
                     if (k == "strain_energy_density" or k.startswith("psi_")) and "hexahedron" in v})

@@ -593,7 +593,7 @@ def test_energies_integrate_each_fabric_term_over_the_reference_volume(tmp_path)
     """Requirement: ``studies/forming.py energies`` (the split of a forming run's strain energy by law term, README)
     gives, per energy density of a hexahedral blank's frame, its integral over the reference volume. A 3WEAVE F-bar
     block on the fibre-aligned lattice (diamonds and, along its edges, collapsed hexahedra: elements of two
-    volumes, so a volume formula right only for boxes, or volumes taken in another element order, fail) at a
+    volumes, so volumes taken from another mesh reading or in another element order fail) at a
     prescribed deformation that loads every term (warp and weft stretch, compaction, in-plane and transverse shear,
     a bend): the integral of ``strain_energy_density`` against the engine's own quadrature, sum over elements and
     points of w psi, to round-off (1e-12 relative: the same numbers summed in another order); the law's six terms
