@@ -714,6 +714,7 @@ def test_damping_of_the_added_mass(added, tmp_path):
     lumped share without), on a rubber cube squeezed at 800 mm/s (vibrating; selective factor 4, alpha 3000 1/s,
     44 cycles): the booked damping energy within 1 % of it (measured 0.3 % / 0.4 %: the trapezoid over the cycles);
     the other mass's identity misses by 20 % or more, so the test tells the two apart."""
+    from test_cli import fdeck
     from test_step_mass import block
 
     data = block(None)
@@ -725,8 +726,6 @@ def test_damping_of_the_added_mass(added, tmp_path):
     damped, other = (whole, share) if added else (share, whole)
     assert h["damping_energy"][-1] == pytest.approx(damped, rel=0.01)
     assert abs(h["damping_energy"][-1] - other) > 0.2 * damped
-    from test_cli import fdeck
-
     (tmp_path / "d.yaml").write_text(yaml.safe_dump(data))
     r = fdeck("info", tmp_path / "d.yaml")  # says which mass the step damps
     assert r.returncode == 0 and ("(on M + dM" in r.stdout) == added, r.stdout + r.stderr

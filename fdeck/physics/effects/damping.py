@@ -47,7 +47,7 @@ class MassDamping(Effect):
     def add_force(self, t, x, v, f):
         if self.alpha > 0.0:
             f -= self.alpha * self.mass[:, None] * v
-            if self.with_added and self.sms is not None and self.sms.active:
+            if self.with_added:  # build() refuses it in a step without selective mass, so sms is bound and active
                 y = self.sms.solver.product(v)  # the solver's buffer: scaled in place, no temporary
                 y *= self.alpha
                 f -= y
