@@ -69,6 +69,8 @@ def parts(form: str, mat: str, divisions, threads: int, selective: float | None 
                                                               g.ratio)
         out["law"] = lambda: m.evaluate(g.Fbar, g.frame, g.params, g.state, g.P, g.psi, g.modulus)
         out["forces_fbar"] = lambda: hex8.forces_fbar(g.F, g.J, g.Jbar, g.ratio, g.P, g.dN, g.w, g.p, g.fe)
+    elif form == "ans_tbar":
+        out.update(_ans_tbar_parts(g, x))
     else:
         out["kinematics"] = lambda: hex8.kinematics(x, g.conn, g.dN, g.F, g.J)
         out["law"] = lambda: m.evaluate(g.F, g.frame, g.params, g.state, g.P, g.psi, g.modulus)
@@ -96,6 +98,23 @@ def parts(form: str, mat: str, divisions, threads: int, selective: float | None 
     result["whole"] = (time.perf_counter() - t0) * scale
     result["solver_split"] = {k: round(s * scale, 4) for k, s in res.timings.items() if s > 0}
     return result
+
+
+def _ans_tbar_parts(g, x) -> dict:
+    """The four passes of an ``ans_tbar`` group's update (``hex8_ans_fbar.Hex8AnsTbarGroup.update``) as callables."""
+    from fdeck.physics.elements import hex8_ans as ha
+    from fdeck.physics.elements import hex8_ans_fbar as hf
+
+    a, m = g.ans, g.material
+    return {
+        "kinematics_ans": lambda: ha.kinematics_ans(x, g.conn, g.b, g.dN, g.w, a["dxi_s"], a["index"], a["Jinv"],
+                                                    a["Gq"], a["Gs"], g.F, g.J, g.Fans, g.F0, g.gs),
+        "tbar_on_ans": lambda: hf.tbar_on_ans(g.w, g.Fans, g.frame, g.T, g.Tbar, g.ratio, g.F_material),
+        "law": lambda: m.evaluate(g.F_material, g.frame, g.params, g.state, g.P, g.psi, g.modulus),
+        "stress_ans_tbar": lambda: hf.stress_ans_tbar(g.Fans, g.frame, g.T, g.Tbar, g.ratio, g.P, g.w, g.p, g.Peff),
+        "forces_ans": lambda: ha.forces_ans(g.F, g.Fans, g.Peff, g.dN, g.w, g.b, a["dxi_s"], a["index"], a["Jinv"],
+                                            a["Gq"], a["Gs"], g.F0, g.gs, g.fe),
+    }
 
 
 def _solver_of(problem):
@@ -150,7 +169,7 @@ def cg_solve_per_iteration(s, g, x) -> float:
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("formulation", choices=["reduced", "full", "fbar"])
+    ap.add_argument("formulation", choices=["reduced", "full", "fbar", "ans_tbar"])
     ap.add_argument("material", help="bench.py's material names: linear_elastic, neo_hookean, fabric_hyper_3weave")
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--divisions", type=int, nargs=3, default=[50, 50, 4])

@@ -54,9 +54,8 @@ import math
 import numpy as np
 
 from fdeck.compile.errors import CompileError
-from fdeck.jit import njit, njit_inline, njit_parallel, prange
-from fdeck.physics.elements.hex8 import GAUSS_2, Hex8Group, shape_gradients_local
-from fdeck.physics.tensor import det3, inv3
+from fdeck.jit import njit_inline, njit_parallel, prange
+from fdeck.physics.elements.hex8 import GAUSS_2, Hex8Group, _deformation_gradients, _det_at, shape_gradients_local
 from fdeck.registry import FormulationKind, register_formulation
 
 PAIRS = ((0, 1), (1, 2), (0, 2))
@@ -96,7 +95,12 @@ def prepare_ans(X: np.ndarray, conn: np.ndarray) -> dict:
                 Gq=np.ascontiguousarray(Gq), Gs=np.ascontiguousarray(Gs))
 
 
-@njit
+CHUNK = 32
+"""Elements per scratch set: the kernels allocate their 3x3 scratch once per CHUNK elements, not per element
+(an allocation per element and array cost more than the arithmetic; ``benchmarks/kernel_parts.py ans_tbar``)."""
+
+
+@njit_inline
 def _chol_upper(C, R):
     """R (3, 3) upper triangular with R^T R = C (3, 3) symmetric; nan when C is not positive definite."""
     r00 = math.sqrt(C[0, 0])
@@ -110,13 +114,28 @@ def _chol_upper(C, R):
     R[2, 0], R[2, 1], R[2, 2] = 0.0, 0.0, r22
 
 
-@njit
-def _natural(A, G, H, i, j):
-    """G[:, i] . A . H[:, j] for a (3, 3) A and base-vector columns G, H."""
+@njit_inline
+def _natural(A, G, e, s, i, j):
+    """G[e, s][:, i] . A . G[e, s][:, j] for a (3, 3) A and base-vector columns G (n_el, n_s, 3, 3), in place."""
     acc = 0.0
     for k in range(3):
-        acc += G[k, i] * (A[k, 0] * H[0, j] + A[k, 1] * H[1, j] + A[k, 2] * H[2, j])
+        acc += G[e, s, k, i] * (A[k, 0] * G[e, s, 0, j] + A[k, 1] * G[e, s, 1, j] + A[k, 2] * G[e, s, 2, j])
     return acc
+
+
+@njit_inline
+def _inv_at(A, e, q, out):
+    """out (3, 3) = A[e, q]^-1 (A (n_el, n_qp, 3, 3)), indexed in place (the arithmetic of ``tensor.inv3``)."""
+    r = 1.0 / _det_at(A, e, q)
+    out[0, 0] = (A[e, q, 1, 1] * A[e, q, 2, 2] - A[e, q, 1, 2] * A[e, q, 2, 1]) * r
+    out[0, 1] = (A[e, q, 0, 2] * A[e, q, 2, 1] - A[e, q, 0, 1] * A[e, q, 2, 2]) * r
+    out[0, 2] = (A[e, q, 0, 1] * A[e, q, 1, 2] - A[e, q, 0, 2] * A[e, q, 1, 1]) * r
+    out[1, 0] = (A[e, q, 1, 2] * A[e, q, 2, 0] - A[e, q, 1, 0] * A[e, q, 2, 2]) * r
+    out[1, 1] = (A[e, q, 0, 0] * A[e, q, 2, 2] - A[e, q, 0, 2] * A[e, q, 2, 0]) * r
+    out[1, 2] = (A[e, q, 0, 2] * A[e, q, 1, 0] - A[e, q, 0, 0] * A[e, q, 1, 2]) * r
+    out[2, 0] = (A[e, q, 1, 0] * A[e, q, 2, 1] - A[e, q, 1, 1] * A[e, q, 2, 0]) * r
+    out[2, 1] = (A[e, q, 0, 1] * A[e, q, 2, 0] - A[e, q, 0, 0] * A[e, q, 2, 1]) * r
+    out[2, 2] = (A[e, q, 0, 0] * A[e, q, 1, 1] - A[e, q, 0, 1] * A[e, q, 1, 0]) * r
 
 
 @njit_inline
@@ -143,93 +162,90 @@ def kinematics_ans(x, conn, b, dN, w, dxi_s, index, Jinv, Gq, Gs, F, J, Fans, F0
     for the forces F0s (n_el, 3, 3), the uniform gradient, and gs (n_el, 6, 3, 2), the current base vectors
     g_i, g_j of each sampling point's pair [mm]. w (n_el, 8) point volumes [mm^3]: C~_q = C_q + K_q - K_bar with
     K_q = J0^-T Delta_q J0^-1 the assumed-shear modification and K_bar = sum_r w_r K_r / V0 its element mean."""
-    for e in prange(conn.shape[0]):
-        xe = np.empty((8, 3))
-        C0 = np.zeros((3, 3))
+    n_el = conn.shape[0]
+    for chunk in prange((n_el + CHUNK - 1) // CHUNK):
+        C0 = np.empty((3, 3))
         Cq = np.empty((8, 3, 3))
         Kq = np.empty((8, 3, 3))
         Kbar = np.empty((3, 3))
         C = np.empty((3, 3))
         W = np.empty((3, 3))
-        D = np.zeros((3, 3))  # natural shear correction Delta, zero diagonal
+        D = np.zeros((3, 3))  # natural shear correction Delta, zero diagonal (never written)
         T = np.empty((3, 3))
         Rc = np.empty((3, 3))
         Ra = np.empty((3, 3))
         M = np.empty((3, 3))
-        for a in range(8):
-            for i in range(3):
-                xe[a, i] = x[conn[e, a], i]
-        F0 = F0s[e]
-        for i in range(3):
-            for j in range(3):
+        A = np.empty(6)
+        for e in range(chunk * CHUNK, min(n_el, (chunk + 1) * CHUNK)):
+            _kinematics_element(x, conn, b, dN, w, dxi_s, index, Jinv, Gq, Gs, F, J, Fans, F0s, gs, e,
+                                C0, Cq, Kq, Kbar, C, W, D, T, Rc, Ra, M, A)
+
+
+@njit_inline
+def _kinematics_element(x, conn, b, dN, w, dxi_s, index, Jinv, Gq, Gs, F, J, Fans, F0s, gs, e,
+                        C0, Cq, Kq, Kbar, C, W, D, T, Rc, Ra, M, A):
+    """``kinematics_ans`` for element e, with the chunk's scratch arrays (3, 3) but Cq, Kq (8, 3, 3) and A (6,)."""
+    for i in range(3):
+        for j in range(3):
+            acc = 0.0
+            for a in range(8):
+                acc += x[conn[e, a], i] * b[e, a, j]
+            F0s[e, i, j] = acc
+    for i in range(3):
+        for j in range(3):
+            C0[i, j] = F0s[e, 0, i] * F0s[e, 0, j] + F0s[e, 1, i] * F0s[e, 1, j] + F0s[e, 2, i] * F0s[e, 2, j]
+    # non-affine shear at the sampling points: g_i.g_j - G_i.C0.G_j
+    for s in range(6):
+        i, j = PAIRS[s // 2]
+        for c in range(2):
+            k = i if c == 0 else j
+            for r in range(3):
                 acc = 0.0
                 for a in range(8):
-                    acc += xe[a, i] * b[e, a, j]
-                F0[i, j] = acc
+                    acc += x[conn[e, a], r] * dxi_s[s, a, k]
+                gs[e, s, r, c] = acc
+        A[s] = (gs[e, s, 0, 0] * gs[e, s, 0, 1] + gs[e, s, 1, 0] * gs[e, s, 1, 1] + gs[e, s, 2, 0] * gs[e, s, 2, 1]
+                - _natural(C0, Gs, e, s, i, j))
+    _deformation_gradients(x, conn, dN, F, J, e)
+    for q in range(8):
         for i in range(3):
             for j in range(3):
-                C0[i, j] = F0[0, i] * F0[0, j] + F0[1, i] * F0[1, j] + F0[2, i] * F0[2, j]
-        # non-affine shear at the sampling points: g_i.g_j - G_i.C0.G_j
-        A = np.empty(6)
-        for s in range(6):
-            i, j = PAIRS[s // 2]
-            for c in range(2):
-                k = i if c == 0 else j
-                for r in range(3):
-                    acc = 0.0
-                    for a in range(8):
-                        acc += xe[a, r] * dxi_s[s, a, k]
-                    gs[e, s, r, c] = acc
-            A[s] = (gs[e, s, 0, 0] * gs[e, s, 0, 1] + gs[e, s, 1, 0] * gs[e, s, 1, 1] + gs[e, s, 2, 0] * gs[e, s, 2, 1]
-                    - _natural(C0, Gs[e, s], Gs[e, s], i, j))
-        for q in range(8):
-            Fq, Ji = F[e, q], Jinv[e, q]
-            for i in range(3):
-                for j in range(3):
-                    acc = 0.0
-                    for a in range(8):
-                        acc += xe[a, i] * dN[e, q, a, j]
-                    Fq[i, j] = acc
-            J[e, q] = det3(Fq)
-            for i in range(3):
-                for j in range(3):
-                    C[i, j] = Fq[0, i] * Fq[0, j] + Fq[1, i] * Fq[1, j] + Fq[2, i] * Fq[2, j]
-                    Cq[q, i, j] = C[i, j]
-                    W[i, j] = C[i, j] - C0[i, j]
-            for k in range(3):
-                i, j = PAIRS[k]
-                d = A[index[q, k]] - _natural(W, Gq[e, q], Gq[e, q], i, j)
-                D[i, j] = d
-                D[j, i] = d
-            # K_q = Jinv^T D Jinv (T = D Jinv first)
-            for i in range(3):
-                for j in range(3):
-                    T[i, j] = D[i, 0] * Ji[0, j] + D[i, 1] * Ji[1, j] + D[i, 2] * Ji[2, j]
-            for i in range(3):
-                for j in range(3):
-                    Kq[q, i, j] = Ji[0, i] * T[0, j] + Ji[1, i] * T[1, j] + Ji[2, i] * T[2, j]
-        _point_mean(Kq, w, e, Kbar)
-        for q in range(8):
-            Fq = F[e, q]
-            for i in range(3):
-                for j in range(3):
-                    C[i, j] = Cq[q, i, j]
-            _chol_upper(C, Rc)
-            # C~ = C + K_q - K_bar
-            for i in range(3):
-                for j in range(3):
-                    C[i, j] += Kq[q, i, j] - Kbar[i, j]
-            _chol_upper(C, Ra)
-            # F~ = F Rc^-1 Ra: back substitution Rc M = Ra, then F M
+                C[i, j] = F[e, q, 0, i] * F[e, q, 0, j] + F[e, q, 1, i] * F[e, q, 1, j] + F[e, q, 2, i] * F[e, q, 2, j]
+                Cq[q, i, j] = C[i, j]
+                W[i, j] = C[i, j] - C0[i, j]
+        for k in range(3):
+            i, j = PAIRS[k]
+            d = A[index[q, k]] - _natural(W, Gq, e, q, i, j)
+            D[i, j] = d
+            D[j, i] = d
+        # K_q = Jinv^T D Jinv (T = D Jinv first)
+        for i in range(3):
             for j in range(3):
-                for i in range(2, -1, -1):
-                    acc = Ra[i, j]
-                    for k in range(i + 1, 3):
-                        acc -= Rc[i, k] * M[k, j]
-                    M[i, j] = acc / Rc[i, i]
-            for i in range(3):
-                for j in range(3):
-                    Fans[e, q, i, j] = Fq[i, 0] * M[0, j] + Fq[i, 1] * M[1, j] + Fq[i, 2] * M[2, j]
+                T[i, j] = D[i, 0] * Jinv[e, q, 0, j] + D[i, 1] * Jinv[e, q, 1, j] + D[i, 2] * Jinv[e, q, 2, j]
+        for i in range(3):
+            for j in range(3):
+                Kq[q, i, j] = Jinv[e, q, 0, i] * T[0, j] + Jinv[e, q, 1, i] * T[1, j] + Jinv[e, q, 2, i] * T[2, j]
+    _point_mean(Kq, w, e, Kbar)
+    for q in range(8):
+        for i in range(3):
+            for j in range(3):
+                C[i, j] = Cq[q, i, j]
+        _chol_upper(C, Rc)
+        # C~ = C + K_q - K_bar
+        for i in range(3):
+            for j in range(3):
+                C[i, j] += Kq[q, i, j] - Kbar[i, j]
+        _chol_upper(C, Ra)
+        # F~ = F Rc^-1 Ra: back substitution Rc M = Ra, then F M
+        for j in range(3):
+            for i in range(2, -1, -1):
+                acc = Ra[i, j]
+                for k in range(i + 1, 3):
+                    acc -= Rc[i, k] * M[k, j]
+                M[i, j] = acc / Rc[i, i]
+        for i in range(3):
+            for j in range(3):
+                Fans[e, q, i, j] = F[e, q, i, 0] * M[0, j] + F[e, q, i, 1] * M[1, j] + F[e, q, i, 2] * M[2, j]
 
 
 @njit_parallel
@@ -242,76 +258,88 @@ def forces_ans(F, Fans, Pans, dN, w, b, dxi_s, index, Jinv, Gq, Gs, F0s, gs, fe)
     Gauss points on its line against d(g_i.g_j); and against the uniform gradient dF0 the affine corrections
     F0 [sum_q w_q J0 offdiag(S~) J0^T - sum_s c_s (G_i G_j^T + G_j G_i^T)].
     """
-    for e in prange(fe.shape[0]):
+    n_el = fe.shape[0]
+    for chunk in prange((n_el + CHUNK - 1) // CHUNK):
         Fi = np.empty((3, 3))
         S = np.empty((3, 3))
         Sn = np.empty((3, 3))
         T = np.empty((3, 3))
         M = np.empty((3, 3))
-        B0 = np.zeros((3, 3))  # symmetric factor of the dF0 term (before F0)
-        cs = np.zeros(6)
-        Sq = np.empty((8, 3, 3))  # sym(S) at the points
+        B0 = np.empty((3, 3))
+        cs = np.empty(6)
+        Sq = np.empty((8, 3, 3))
         Sbar = np.empty((3, 3))
-        for a in range(8):
-            for i in range(3):
-                fe[e, a, i] = 0.0
-        for q in range(8):
-            inv3(Fans[e, q], Fi)
-            Pq = Pans[e, q]
-            for i in range(3):
-                for j in range(3):
-                    S[i, j] = Fi[i, 0] * Pq[0, j] + Fi[i, 1] * Pq[1, j] + Fi[i, 2] * Pq[2, j]
-            for i in range(3):
-                for j in range(3):
-                    Sq[q, i, j] = 0.5 * (S[i, j] + S[j, i])
-        _point_mean(Sq, w, e, Sbar)
-        for q in range(8):
-            Fq, Ji, G = F[e, q], Jinv[e, q], Gq[e, q]
-            # the modification K_q - K_bar sees the stress's deviation from its element mean, S - S_bar
-            for i in range(3):
-                for j in range(3):
-                    T[i, j] = ((Sq[q, i, 0] - Sbar[i, 0]) * Ji[j, 0] + (Sq[q, i, 1] - Sbar[i, 1]) * Ji[j, 1]
-                               + (Sq[q, i, 2] - Sbar[i, 2]) * Ji[j, 2])  # (S - S_bar) Jinv^T
-            for i in range(3):
-                for j in range(3):
-                    Sn[i, j] = w[e, q] * (Ji[i, 0] * T[0, j] + Ji[i, 1] * T[1, j] + Ji[i, 2] * T[2, j])
-            for k in range(3):
-                i, j = PAIRS[k]
-                cs[index[q, k]] += Sn[i, j]
-            # split w S~ into its diagonal (kept at q) and off-diagonal (moved to the affine part) in Cartesian form
-            for i in range(3):
-                for j in range(3):
-                    off = 0.0
-                    for k in range(3):
-                        for m in range(3):
-                            if m != k:
-                                off += G[i, k] * Sn[k, m] * G[j, m]
-                    T[i, j] = w[e, q] * Sq[q, i, j] - off
-                    B0[i, j] += off
-            for i in range(3):
-                for j in range(3):
-                    M[i, j] = Fq[i, 0] * T[0, j] + Fq[i, 1] * T[1, j] + Fq[i, 2] * T[2, j]
-            for a in range(8):
-                for i in range(3):
-                    fe[e, a, i] += M[i, 0] * dN[e, q, a, 0] + M[i, 1] * dN[e, q, a, 1] + M[i, 2] * dN[e, q, a, 2]
-        for s in range(6):
-            i, j = PAIRS[s // 2]
-            c = cs[s]
-            G = Gs[e, s]
-            for r in range(3):
-                for m in range(3):
-                    B0[r, m] -= c * (G[r, i] * G[m, j] + G[r, j] * G[m, i])
-            for a in range(8):
-                di, dj = c * dxi_s[s, a, i], c * dxi_s[s, a, j]
-                for r in range(3):
-                    fe[e, a, r] += gs[e, s, r, 1] * di + gs[e, s, r, 0] * dj
-        F0 = F0s[e]
+        for e in range(chunk * CHUNK, min(n_el, (chunk + 1) * CHUNK)):
+            _forces_element(F, Fans, Pans, dN, w, b, dxi_s, index, Jinv, Gq, Gs, F0s, gs, fe, e,
+                            Fi, S, Sn, T, M, B0, cs, Sq, Sbar)
+
+
+@njit_inline
+def _forces_element(F, Fans, Pans, dN, w, b, dxi_s, index, Jinv, Gq, Gs, F0s, gs, fe, e,
+                    Fi, S, Sn, T, M, B0, cs, Sq, Sbar):
+    """``forces_ans`` for element e, with the chunk's scratch: (3, 3) arrays but cs (6,) and Sq (8, 3, 3)."""
+    for a in range(8):
+        for i in range(3):
+            fe[e, a, i] = 0.0
+    for i in range(3):
+        for j in range(3):
+            B0[i, j] = 0.0  # symmetric factor of the dF0 term (before F0)
+    for s in range(6):
+        cs[s] = 0.0
+    for q in range(8):
+        _inv_at(Fans, e, q, Fi)
         for i in range(3):
             for j in range(3):
-                M[i, j] = F0[i, 0] * B0[0, j] + F0[i, 1] * B0[1, j] + F0[i, 2] * B0[2, j]
+                S[i, j] = Fi[i, 0] * Pans[e, q, 0, j] + Fi[i, 1] * Pans[e, q, 1, j] + Fi[i, 2] * Pans[e, q, 2, j]
+        for i in range(3):
+            for j in range(3):
+                Sq[q, i, j] = 0.5 * (S[i, j] + S[j, i])
+    _point_mean(Sq, w, e, Sbar)
+    for q in range(8):
+        # the modification K_q - K_bar sees the stress's deviation from its element mean, S - S_bar
+        for i in range(3):
+            for j in range(3):
+                T[i, j] = ((Sq[q, i, 0] - Sbar[i, 0]) * Jinv[e, q, j, 0] + (Sq[q, i, 1] - Sbar[i, 1]) * Jinv[e, q, j, 1]
+                           + (Sq[q, i, 2] - Sbar[i, 2]) * Jinv[e, q, j, 2])  # (S - S_bar) Jinv^T
+        for i in range(3):
+            for j in range(3):
+                Sn[i, j] = w[e, q] * (Jinv[e, q, i, 0] * T[0, j] + Jinv[e, q, i, 1] * T[1, j]
+                                      + Jinv[e, q, i, 2] * T[2, j])
+        for k in range(3):
+            i, j = PAIRS[k]
+            cs[index[q, k]] += Sn[i, j]
+        # split w S~ into its diagonal (kept at q) and off-diagonal (moved to the affine part) in Cartesian form
+        for i in range(3):
+            for j in range(3):
+                off = 0.0
+                for k in range(3):
+                    for m in range(3):
+                        if m != k:
+                            off += Gq[e, q, i, k] * Sn[k, m] * Gq[e, q, j, m]
+                T[i, j] = w[e, q] * Sq[q, i, j] - off
+                B0[i, j] += off
+        for i in range(3):
+            for j in range(3):
+                M[i, j] = F[e, q, i, 0] * T[0, j] + F[e, q, i, 1] * T[1, j] + F[e, q, i, 2] * T[2, j]
         for a in range(8):
             for i in range(3):
-                fe[e, a, i] += M[i, 0] * b[e, a, 0] + M[i, 1] * b[e, a, 1] + M[i, 2] * b[e, a, 2]
+                fe[e, a, i] += M[i, 0] * dN[e, q, a, 0] + M[i, 1] * dN[e, q, a, 1] + M[i, 2] * dN[e, q, a, 2]
+    for s in range(6):
+        i, j = PAIRS[s // 2]
+        c = cs[s]
+        for r in range(3):
+            for m in range(3):
+                B0[r, m] -= c * (Gs[e, s, r, i] * Gs[e, s, m, j] + Gs[e, s, r, j] * Gs[e, s, m, i])
+        for a in range(8):
+            di, dj = c * dxi_s[s, a, i], c * dxi_s[s, a, j]
+            for r in range(3):
+                fe[e, a, r] += gs[e, s, r, 1] * di + gs[e, s, r, 0] * dj
+    for i in range(3):
+        for j in range(3):
+            M[i, j] = F0s[e, i, 0] * B0[0, j] + F0s[e, i, 1] * B0[1, j] + F0s[e, i, 2] * B0[2, j]
+    for a in range(8):
+        for i in range(3):
+            fe[e, a, i] += M[i, 0] * b[e, a, 0] + M[i, 1] * b[e, a, 1] + M[i, 2] * b[e, a, 2]
 
 
 class Hex8AnsGroup(Hex8Group):
