@@ -101,14 +101,18 @@ CHUNK = 32
 
 
 @njit_inline
-def _chol_upper(C, R):
-    """R (3, 3) upper triangular with R^T R = C (3, 3) symmetric; nan when C is not positive definite."""
+def _chol_upper(C, R, Rinv):
+    """R (3, 3) upper triangular with R^T R = C (3, 3) symmetric, Rinv (3,) the reciprocals of its diagonal (one
+    division each, then multiplications); nan when C is not positive definite."""
     r00 = math.sqrt(C[0, 0])
-    r01 = C[0, 1] / r00
-    r02 = C[0, 2] / r00
+    Rinv[0] = 1.0 / r00
+    r01 = C[0, 1] * Rinv[0]
+    r02 = C[0, 2] * Rinv[0]
     r11 = math.sqrt(C[1, 1] - r01 * r01)
-    r12 = (C[1, 2] - r01 * r02) / r11
+    Rinv[1] = 1.0 / r11
+    r12 = (C[1, 2] - r01 * r02) * Rinv[1]
     r22 = math.sqrt(C[2, 2] - r02 * r02 - r12 * r12)
+    Rinv[2] = 1.0 / r22
     R[0, 0], R[0, 1], R[0, 2] = r00, r01, r02
     R[1, 0], R[1, 1], R[1, 2] = 0.0, r11, r12
     R[2, 0], R[2, 1], R[2, 2] = 0.0, 0.0, r22
@@ -176,15 +180,17 @@ def kinematics_ans(x, conn, b, dN, w, dxi_s, index, Jinv, Gq, Gs, F, J, Fans, F0
         Ra = np.empty((3, 3))
         M = np.empty((3, 3))
         A = np.empty(6)
+        Rinv = np.empty(3)
         for e in range(chunk * CHUNK, min(n_el, (chunk + 1) * CHUNK)):
             _kinematics_element(x, conn, b, dN, w, dxi_s, index, Jinv, Gq, Gs, F, J, Fans, F0s, gs, e,
-                                C0, Cq, Kq, Kbar, C, W, D, T, Rc, Ra, M, A)
+                                C0, Cq, Kq, Kbar, C, W, D, T, Rc, Ra, M, A, Rinv)
 
 
 @njit_inline
 def _kinematics_element(x, conn, b, dN, w, dxi_s, index, Jinv, Gq, Gs, F, J, Fans, F0s, gs, e,
-                        C0, Cq, Kq, Kbar, C, W, D, T, Rc, Ra, M, A):
-    """``kinematics_ans`` for element e, with the chunk's scratch arrays (3, 3) but Cq, Kq (8, 3, 3) and A (6,)."""
+                        C0, Cq, Kq, Kbar, C, W, D, T, Rc, Ra, M, A, Rinv):
+    """``kinematics_ans`` for element e, with the chunk's scratch arrays (3, 3) but Cq, Kq (8, 3, 3), A (6,) and
+    Rinv (3,)."""
     for i in range(3):
         for j in range(3):
             acc = 0.0
@@ -230,19 +236,19 @@ def _kinematics_element(x, conn, b, dN, w, dxi_s, index, Jinv, Gq, Gs, F, J, Fan
         for i in range(3):
             for j in range(3):
                 C[i, j] = Cq[q, i, j]
-        _chol_upper(C, Rc)
-        # C~ = C + K_q - K_bar
+        # C~ = C + K_q - K_bar (Ra's reciprocals first, then Rc's, kept for the back substitution)
         for i in range(3):
             for j in range(3):
-                C[i, j] += Kq[q, i, j] - Kbar[i, j]
-        _chol_upper(C, Ra)
+                W[i, j] = C[i, j] + (Kq[q, i, j] - Kbar[i, j])
+        _chol_upper(W, Ra, Rinv)
+        _chol_upper(C, Rc, Rinv)
         # F~ = F Rc^-1 Ra: back substitution Rc M = Ra, then F M
         for j in range(3):
             for i in range(2, -1, -1):
                 acc = Ra[i, j]
                 for k in range(i + 1, 3):
                     acc -= Rc[i, k] * M[k, j]
-                M[i, j] = acc / Rc[i, i]
+                M[i, j] = acc * Rinv[i]
         for i in range(3):
             for j in range(3):
                 Fans[e, q, i, j] = F[e, q, i, 0] * M[0, j] + F[e, q, i, 1] * M[1, j] + F[e, q, i, 2] * M[2, j]

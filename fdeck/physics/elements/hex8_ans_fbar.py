@@ -161,13 +161,13 @@ class Hex8AnsFbarGroup(Hex8AnsGroup):
 def _thickness_direction(Fans, frame, e, q, G, k):
     """k = F~^-T f3 for point (e, q) into k (3,), with G (3, 3) scratch holding F~^-1; returns
     |k|^2 = f3 . C~^-1 . f3 = 1 / T~^2 (T~ the thickness stretch normal to the deformed fibre plane)."""
-    d = _det_at(Fans, e, q)
+    r = 1.0 / _det_at(Fans, e, q)
     for i in range(3):
         i1, i2 = (i + 1) % 3, (i + 2) % 3
         for j in range(3):
             j1, j2 = (j + 1) % 3, (j + 2) % 3
             # (F^-1)_ji = cof(F)_ij / det F
-            G[j, i] = (Fans[e, q, i1, j1] * Fans[e, q, i2, j2] - Fans[e, q, i1, j2] * Fans[e, q, i2, j1]) / d
+            G[j, i] = (Fans[e, q, i1, j1] * Fans[e, q, i2, j2] - Fans[e, q, i1, j2] * Fans[e, q, i2, j1]) * r
     n2 = 0.0
     for i in range(3):
         k[i] = G[0, i] * frame[e, 2, 0] + G[1, i] * frame[e, 2, 1] + G[2, i] * frame[e, 2, 2]
