@@ -1,4 +1,4 @@
-"""Where one explicit cycle of a hexahedral block goes, kernel by kernel (not part of the test suite).
+"""Where one explicit cycle of a hexahedral block goes, kernel by kernel (not part of the suite).
 
     python benchmarks/kernel_parts.py reduced linear_elastic             # 50 x 50 x 4 block, 1 thread
     python benchmarks/kernel_parts.py fbar fabric_hyper_3weave --threads 2
@@ -11,13 +11,16 @@ whole cycle as ``solver.run`` measures it (200 cycles after a warm-up, with the 
 sum and the whole differ by the solver's bookkeeping. With ``--selective FACTOR`` the step is selectively mass
 scaled by that factor and the conjugate-gradient solve's passes are timed too (``cg_*``, per element and pass;
 ``cg_solve_per_iteration``: one whole solve from zero of the cycle's residual, per element and iteration).
-Run it at two commits (``git worktree``) to see what a change
-to a kernel bought; on a shared host, run both back to back and read the differences, not the absolute values.
+With ``--count`` it counts each pass's operations per element instead (``floor.py``'s counting floats, one
+element deformed by 3 %, the kernels' scratch arrays counting too).
+Run it at two commits (``git worktree``) to see what a change to a kernel bought; on a shared host, run both back
+to back and read the differences, not the absolute values.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from pathlib import Path
@@ -62,21 +65,7 @@ def parts(form: str, mat: str, divisions, threads: int, selective: float | None 
     x = problem.X + 0.01 * rng.standard_normal(problem.X.shape)  # elements are 1 mm: a 1 % generic distortion
     v = rng.standard_normal(problem.X.shape)
     f = np.zeros_like(x)
-    m = g.material
-    out = {}
-    if form == "fbar":
-        out["kinematics_fbar"] = lambda: hex8.kinematics_fbar(x, g.conn, g.dN, g.w, g.F, g.J, g.Fbar, g.Jbar,
-                                                              g.ratio)
-        out["law"] = lambda: m.evaluate(g.Fbar, g.frame, g.params, g.state, g.P, g.psi, g.modulus)
-        out["forces_fbar"] = lambda: hex8.forces_fbar(g.F, g.J, g.Jbar, g.ratio, g.P, g.dN, g.w, g.p, g.fe)
-    elif form == "ans_tbar":
-        out.update(_ans_tbar_parts(g, x))
-    else:
-        out["kinematics"] = lambda: hex8.kinematics(x, g.conn, g.dN, g.F, g.J)
-        out["law"] = lambda: m.evaluate(g.F, g.frame, g.params, g.state, g.P, g.psi, g.modulus)
-        out["forces"] = lambda: hex8.forces(g.P, g.dN, g.w, g.fe)
-    if g.has_hourglass:
-        out["hourglass"] = lambda: hex8.hourglass(x, v, g.conn, g.gamma, g.k_hg, g.c_hg, g.fe, g.e_hg, g.p_hg)
+    out = element_passes(form, g, x, v)
     out["gather"] = lambda: gather_add(g.fe, g.ptr, g.slots, f)
     out["stable_step"] = g.stable_dt
     v_old, inv_m, zero = v.copy(), np.ones(len(x)), np.zeros_like(x)
@@ -98,6 +87,65 @@ def parts(form: str, mat: str, divisions, threads: int, selective: float | None 
     result["whole"] = (time.perf_counter() - t0) * scale
     result["solver_split"] = {k: round(s * scale, 4) for k, s in res.timings.items() if s > 0}
     return result
+
+
+def element_passes(form: str, g, x, v) -> dict:
+    """{pass name: callable} of one hexahedral group's element update at positions x, velocities v (n_node, 3)."""
+    from fdeck.physics.elements import hex8
+
+    m = g.material
+    out = {}
+    if form == "fbar":
+        out["kinematics_fbar"] = lambda: hex8.kinematics_fbar(x, g.conn, g.dN, g.w, g.F, g.J, g.Fbar, g.Jbar,
+                                                              g.ratio)
+        out["law"] = lambda: m.evaluate(g.Fbar, g.frame, g.params, g.state, g.P, g.psi, g.modulus)
+        out["forces_fbar"] = lambda: hex8.forces_fbar(g.F, g.J, g.Jbar, g.ratio, g.P, g.dN, g.w, g.p, g.fe)
+    elif form == "ans_tbar":
+        out.update(_ans_tbar_parts(g, x))
+    else:
+        out["kinematics"] = lambda: hex8.kinematics(x, g.conn, g.dN, g.F, g.J)
+        out["law"] = lambda: m.evaluate(g.F, g.frame, g.params, g.state, g.P, g.psi, g.modulus)
+        out["forces"] = lambda: hex8.forces(g.P, g.dN, g.w, g.fe)
+    if g.has_hourglass:
+        out["hourglass"] = lambda: hex8.hourglass(x, v, g.conn, g.gamma, g.k_hg, g.c_hg, g.fe, g.e_hg, g.p_hg)
+    return out
+
+
+def count_passes(form: str, mat: str) -> dict:
+    """Operations per element of each element pass, on one element deformed by a fixed pseudo-random 3 %, with
+    ``floor.py``'s counting floats; the kernels' local scratch arrays are made counting arrays too (numpy's empty
+    and zeros replaced in the element modules). Needs NUMBA_DISABLE_JIT=1."""
+    import numpy as np
+
+    import bench
+    import floor
+    from fdeck.compile.problem import compile_deck
+    from fdeck.deck.model import Deck
+    from fdeck.physics.elements import hex8, hex8_ans, hex8_ans_fbar
+
+    class CountingNumpy:
+        def __getattr__(self, name):
+            return getattr(np, name)
+
+        def empty(self, shape, dtype=float):
+            return floor._counted(np.zeros(shape)) if dtype is float else np.empty(shape, dtype)
+
+        zeros = empty
+
+    floor._patch_math()
+    problem = compile_deck(Deck.model_validate(bench.deck(form, mat, (1, 1, 1), 1)))
+    (g,) = problem.groups
+    for module in (hex8, hex8_ans, hex8_ans_fbar):  # after the set-up, which needs real arrays
+        module.np = CountingNumpy()
+    for name, a in list(vars(g).items()):
+        if isinstance(a, np.ndarray) and a.dtype == np.float64:
+            setattr(g, name, floor._counted(np.array(a)))
+    if hasattr(g, "ans"):
+        g.ans = {k: floor._counted(np.array(a)) for k, a in g.ans.items()}
+    rng = np.random.default_rng(1)
+    x = floor._counted(problem.X + 0.03 * rng.uniform(-1.0, 1.0, problem.X.shape))
+    v = floor._counted(rng.uniform(-1.0, 1.0, problem.X.shape))
+    return {name: floor._count(fn) for name, fn in element_passes(form, g, x, v).items()}
 
 
 def _ans_tbar_parts(g, x) -> dict:
@@ -175,7 +223,16 @@ def main():
     ap.add_argument("--divisions", type=int, nargs=3, default=[50, 50, 4])
     ap.add_argument("--selective", type=float, default=None, metavar="FACTOR",
                     help="selective mass scaling by FACTOR, and time the conjugate-gradient passes")
+    ap.add_argument("--count", action="store_true",
+                    help="count each pass's operations per element instead (floor.py's counter; no timing)")
     a = ap.parse_args()
+    if a.count:
+        if not os.environ.get("NUMBA_DISABLE_JIT"):  # the counter needs the pure-Python kernels
+            os.execve(sys.executable, [sys.executable, *sys.argv], dict(os.environ, NUMBA_DISABLE_JIT="1"))
+        for name, c in count_passes(a.formulation, a.material).items():
+            ops = ", ".join(f"{k} {n:.0f}" for k, n in c.items())
+            print(f"{name:24s} {sum(c.values()):8.0f} flops per element ({ops})")
+        return
     r = parts(a.formulation, a.material, a.divisions, a.threads, a.selective)
     split = r.pop("solver_split")
     whole = r.pop("whole")
