@@ -115,6 +115,7 @@ def count_passes(form: str, mat: str) -> dict:
     """Operations per element of each element pass, on one element deformed by a fixed pseudo-random 3 %, with
     ``floor.py``'s counting floats; the kernels' local scratch arrays are made counting arrays too (numpy's empty
     and zeros replaced in the element modules). Needs NUMBA_DISABLE_JIT=1."""
+    import numba
     import numpy as np
 
     import bench
@@ -128,10 +129,11 @@ def count_passes(form: str, mat: str) -> dict:
             return getattr(np, name)
 
         def empty(self, shape, dtype=float):
-            return floor._counted(np.zeros(shape)) if dtype is float else np.empty(shape, dtype)
+            return floor._counted(np.zeros(shape)) if np.dtype(dtype) == np.float64 else np.empty(shape, dtype)
 
         zeros = empty
 
+    assert numba.config.DISABLE_JIT, "count_passes needs NUMBA_DISABLE_JIT=1 (and leaves numpy patched: one process)"
     floor._patch_math()
     problem = compile_deck(Deck.model_validate(bench.deck(form, mat, (1, 1, 1), 1)))
     (g,) = problem.groups
@@ -227,7 +229,7 @@ def main():
                     help="count each pass's operations per element instead (floor.py's counter; no timing)")
     a = ap.parse_args()
     if a.count:
-        if not os.environ.get("NUMBA_DISABLE_JIT"):  # the counter needs the pure-Python kernels
+        if os.environ.get("NUMBA_DISABLE_JIT") != "1":  # the counter needs the pure-Python kernels
             os.execve(sys.executable, [sys.executable, *sys.argv], dict(os.environ, NUMBA_DISABLE_JIT="1"))
         for name, c in count_passes(a.formulation, a.material).items():
             ops = ", ".join(f"{k} {n:.0f}" for k, n in c.items())

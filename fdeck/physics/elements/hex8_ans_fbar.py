@@ -46,6 +46,8 @@ Units as in ``hex8``: x [mm], forces [N], stresses [MPa], volumes [mm^3].
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from fdeck.compile.errors import CompileError
@@ -188,7 +190,7 @@ def tbar_on_ans(w, Fans, frame, T, Tbar, ratio, Fmat):
         vol = 0.0
         tw = 0.0
         for q in range(n_qp):
-            t = 1.0 / np.sqrt(_thickness_direction(Fans, frame, e, q, G, k)) if _det_at(Fans, e, q) > 0.0 else np.nan
+            t = 1.0 / math.sqrt(_thickness_direction(Fans, frame, e, q, G, k)) if _det_at(Fans, e, q) > 0.0 else np.nan
             T[e, q] = t
             vol += w[e, q]
             tw += w[e, q] * t
