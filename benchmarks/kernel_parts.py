@@ -151,7 +151,7 @@ def count_passes(form: str, mat: str) -> dict:
 
 
 def _ans_tbar_parts(g, x) -> dict:
-    """The four passes of an ``ans_tbar`` group's update (``hex8_ans_fbar.Hex8AnsTbarGroup.update``) as callables."""
+    """The five passes of an ``ans_tbar`` group's update (``hex8_ans_fbar.Hex8AnsTbarGroup.update``) as callables."""
     from fdeck.physics.elements import hex8_ans as ha
     from fdeck.physics.elements import hex8_ans_fbar as hf
 
