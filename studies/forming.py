@@ -41,7 +41,8 @@ out-of-plane profile along rows of nodes (reference y nearest to each Y, from x 
 dominant wavelength and the share of its variance below three node spacings: a wave from node-scale scatter.
 `energies` integrates each energy density a hexahedral blank's frame holds (``strain_energy_density`` and the
 fabric law's terms ``psi_*``, point averages weighted by the points' reference volumes) over the reference volume
-of each element (the engine's own, ``hex8.prepare``: distorted and collapsed hexahedra count right) and prints one column per run [mJ] with its change from the first run: which part of the energy a refinement moves.
+of each element (the engine's own, ``hex8.prepare``: distorted and collapsed hexahedra count right) and prints
+one column per run [mJ] with its change from the first run: which part of the energy a refinement moves.
 """
 
 from __future__ import annotations

@@ -53,7 +53,7 @@ import numpy as np
 from fdeck.compile.errors import CompileError
 from fdeck.jit import njit_parallel, prange
 from fdeck.physics.elements.hex8 import _det_at, _inline, mean_pressure
-from fdeck.physics.elements.hex8_ans import Hex8AnsGroup, forces_ans, kinematics_ans
+from fdeck.physics.elements.hex8_ans import CHUNK, Hex8AnsGroup, forces_ans, kinematics_ans
 from fdeck.registry import FormulationKind, register_formulation
 
 COUPLING = 1.0 / 9.0
@@ -160,10 +160,11 @@ class Hex8AnsFbarGroup(Hex8AnsGroup):
 
 
 @_inline
-def _thickness_direction(Fans, frame, e, q, G, k):
-    """k = F~^-T f3 for point (e, q) into k (3,), with G (3, 3) scratch holding F~^-1; returns
-    |k|^2 = f3 . C~^-1 . f3 = 1 / T~^2 (T~ the thickness stretch normal to the deformed fibre plane)."""
-    r = 1.0 / _det_at(Fans, e, q)
+def _thickness_direction(Fans, frame, e, q, d, G, k):
+    """k = F~^-T f3 for point (e, q) into k (3,), with G (3, 3) scratch holding F~^-1 and d = det F~ (the caller's,
+    computed once); returns |k|^2 = f3 . C~^-1 . f3 = 1 / T~^2 (T~ the thickness stretch normal to the deformed
+    fibre plane)."""
+    r = 1.0 / d
     for i in range(3):
         i1, i2 = (i + 1) % 3, (i + 2) % 3
         for j in range(3):
@@ -183,24 +184,26 @@ def tbar_on_ans(w, Fans, frame, T, Tbar, ratio, Fmat):
     (f3 . C~^-1 . f3)^(-1/2) the stretch normal to the deformed fibre plane (exp of fabric_hyper's compaction
     invariant) and Tbar (n_el,) its volume average; frame (n_el, 3, 3) rows f1, f2, f3. A non-positive det F~
     gives nan."""
-    n_qp = w.shape[1]
-    for e in prange(w.shape[0]):
+    n_el, n_qp = w.shape
+    for chunk in prange((n_el + CHUNK - 1) // CHUNK):
         G = np.empty((3, 3))
         k = np.empty(3)
-        vol = 0.0
-        tw = 0.0
-        for q in range(n_qp):
-            t = 1.0 / math.sqrt(_thickness_direction(Fans, frame, e, q, G, k)) if _det_at(Fans, e, q) > 0.0 else np.nan
-            T[e, q] = t
-            vol += w[e, q]
-            tw += w[e, q] * t
-        Tbar[e] = tw / vol
-        for q in range(n_qp):
-            r = (Tbar[e] / T[e, q]) ** (1.0 / 3.0)
-            ratio[e, q] = r
-            for i in range(3):
-                for j in range(3):
-                    Fmat[e, q, i, j] = r * Fans[e, q, i, j]
+        for e in range(chunk * CHUNK, min(n_el, (chunk + 1) * CHUNK)):
+            vol = 0.0
+            tw = 0.0
+            for q in range(n_qp):
+                d = _det_at(Fans, e, q)
+                t = 1.0 / math.sqrt(_thickness_direction(Fans, frame, e, q, d, G, k)) if d > 0.0 else np.nan
+                T[e, q] = t
+                vol += w[e, q]
+                tw += w[e, q] * t
+            Tbar[e] = tw / vol
+            for q in range(n_qp):
+                r = (Tbar[e] / T[e, q]) ** (1.0 / 3.0)
+                ratio[e, q] = r
+                for i in range(3):
+                    for j in range(3):
+                        Fmat[e, q, i, j] = r * Fans[e, q, i, j]
 
 
 @njit_parallel
@@ -208,22 +211,23 @@ def stress_ans_tbar(Fans, frame, T, Tbar, ratio, Pmat, w, p, Peff):
     """Peff (n_el, 8, 3, 3) = F~ S_eff [MPa], S_eff = r^2 S^ + (pbar T~ / Tbar - p) m (x) m / (f3 . m), m = C~^-1 f3,
     p = r (P^ : F~) / 3 (n_el, 8) [MPa] and pbar its volume average: the whole dW through dC~ (Tbar is itself a
     function of the C~_q). Pmat = dpsi/dF^ (n_el, 8, 3, 3) from the material at F^ = r F~."""
-    n_qp = w.shape[1]
-    for e in prange(w.shape[0]):
+    n_el, n_qp = w.shape
+    for chunk in prange((n_el + CHUNK - 1) // CHUNK):
         G = np.empty((3, 3))
         k = np.empty(3)
         m = np.empty(3)
-        pbar = mean_pressure(Pmat, Fans, ratio, w, p, e)
-        for q in range(n_qp):
-            n2 = _thickness_direction(Fans, frame, e, q, G, k)
-            for i in range(3):
-                m[i] = G[i, 0] * k[0] + G[i, 1] * k[1] + G[i, 2] * k[2]  # C~^-1 f3 = F~^-1 F~^-T f3
-            c = (pbar * T[e, q] / Tbar[e] - p[e, q]) / n2
-            r = ratio[e, q]
-            # F~ (r^2 S^) = r P^ (S^ = F^-1 P^, F^ = r F~); F~ m = F~^-T f3 = k
-            for i in range(3):
-                for j in range(3):
-                    Peff[e, q, i, j] = r * Pmat[e, q, i, j] + c * k[i] * m[j]
+        for e in range(chunk * CHUNK, min(n_el, (chunk + 1) * CHUNK)):
+            pbar = mean_pressure(Pmat, Fans, ratio, w, p, e)
+            for q in range(n_qp):
+                n2 = _thickness_direction(Fans, frame, e, q, _det_at(Fans, e, q), G, k)
+                for i in range(3):
+                    m[i] = G[i, 0] * k[0] + G[i, 1] * k[1] + G[i, 2] * k[2]  # C~^-1 f3 = F~^-1 F~^-T f3
+                c = (pbar * T[e, q] / Tbar[e] - p[e, q]) / n2
+                r = ratio[e, q]
+                # F~ (r^2 S^) = r P^ (S^ = F^-1 P^, F^ = r F~); F~ m = F~^-T f3 = k
+                for i in range(3):
+                    for j in range(3):
+                        Peff[e, q, i, j] = r * Pmat[e, q, i, j] + c * k[i] * m[j]
 
 
 class Hex8AnsTbarGroup(Hex8AnsGroup):
