@@ -151,7 +151,7 @@ def count_passes(form: str, mat: str) -> dict:
 
 
 def _ans_tbar_parts(g, x) -> dict:
-    """The five passes of an ``ans_tbar`` group's update (``hex8_ans_fbar.Hex8AnsTbarGroup.update``) as callables."""
+    """The six passes of an ``ans_tbar`` group's update (``hex8_ans_fbar.Hex8AnsTbarGroup.update``) as callables."""
     from fdeck.physics.elements import hex8_ans as ha
     from fdeck.physics.elements import hex8_ans_fbar as hf
 
@@ -159,11 +159,13 @@ def _ans_tbar_parts(g, x) -> dict:
     return {
         "kinematics_ans": lambda: ha.kinematics_ans(x, g.conn, g.b, g.dN, g.w, a["dxi_s"], a["index"], a["Jinv"],
                                                     a["Gq"], a["Gs"], g.F, g.J, g.Fans, g.F0, g.gs),
-        "tbar_on_ans": lambda: hf.tbar_on_ans(g.w, g.Fans, g.frame, g.T, g.Tbar, g.ratio, g.F_material),
+        "tbar_on_ans": lambda: hf.tbar_on_ans(g.w, g.F, g.Fans, g.frame, g.T, g.Tans, g.Tbar, g.ratio, g.F_material),
         "law": lambda: m.evaluate(g.F_material, g.frame, g.params, g.state, g.P, g.psi, g.modulus),
-        "stress_ans_tbar": lambda: hf.stress_ans_tbar(g.Fans, g.frame, g.T, g.Tbar, g.ratio, g.P, g.w, g.p, g.Peff),
+        "stress_ans_tbar": lambda: hf.stress_ans_tbar(g.Fans, g.frame, g.T, g.Tans, g.Tbar, g.ratio, g.F_material,
+                                                      g.P, g.w, g.p, g.Peff, g.bT),
         "forces_ans": lambda: ha.forces_ans(g.F, g.Fans, g.Peff, g.dN, g.w, g.b, a["dxi_s"], a["index"], a["Jinv"],
                                             a["Gq"], a["Gs"], g.F0, g.gs, g.fe),
+        "add_thickness_forces": lambda: hf.add_thickness_forces(g.F, g.frame, g.T, g.bT, g.dN, g.w, g.fe),
     }
 
 

@@ -260,6 +260,8 @@ def _resume_series(formats, out_dir: Path, name: str, problem, resume: dict) -> 
     old_dir = Path(resume["outputs"]["out_dir"])
 
     def moved(value):
+        if isinstance(value, Path) and value == old_dir:  # the series' own folder, where its frames go
+            return out_dir
         if isinstance(value, Path) and value.parent == old_dir:
             return out_dir / value.name
         if isinstance(value, list):

@@ -186,7 +186,9 @@ def parallel_below_2000(monkeypatch):
 @pytest.mark.parametrize("kind", sorted(DECKS))
 def test_restart_from_half_time_is_bitwise(tmp_path, kind, threads, parallel_below_2000):
     """Requirement: a run restarted from a checkpoint at half of its cycles ends bitwise identical to the
-    uninterrupted run (SHA-256 of final x, v, directors, of history.csv and of the .pvd/.xdmf indexes), for a
+    uninterrupted run (SHA-256 of final x, v, directors, of history.csv and of the .pvd/.xdmf indexes), in a copy
+    of the result folder whose original is gone (every frame file written there, none where the checkpoint was
+    written: a restart in a copied folder once sent its VTU frames to the original), for a
     hexahedral deck, a shell deck, a deck with fibre bending and damping, and a block pressed and dragged by a
     moving rigid tool with Coulomb friction (tool position and stick springs are state), the same with one
     measure of every kind that keeps state (wrinkles with a region, draw-in, displacement, waviness), the pressed
@@ -208,11 +210,16 @@ def test_restart_from_half_time_is_bitwise(tmp_path, kind, threads, parallel_bel
             if later.name > ck.name:
                 later.unlink()
         (half / "history.csv").write_text("damaged\n")  # the restart rewrites it from the checkpoint
+        frames = sorted(f.name for f in full.glob("*.vtu"))
+        expected = digest(full)
+        # the checkpoint names `full`: the restart must write every frame into its own folder, not there
+        shutil.move(full, tmp_path / "moved")
         code2, summary2 = run(path, half, restart=True)
         assert code2 == 0 and summary2["status"] == "completed"
         assert 0.3 * summary["cycles"] < summary2["checkpoints"]["restarted_from_cycle"] < 0.7 * summary["cycles"]
         assert summary2["cycles"] == summary["cycles"]
-        assert digest(half) == digest(full)
+        assert digest(half) == expected
+        assert not full.exists() and sorted(f.name for f in half.glob("*.vtu")) == frames
     finally:
         numba.set_num_threads(saved)
 

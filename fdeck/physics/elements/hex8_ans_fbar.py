@@ -18,26 +18,42 @@ the point and m_bar its element mean:
   a bimodular fabric it passes the element-scale volume change of the compressed, soft fibres into the stiff weft
   and compaction: cantilevers with 1 % fibre compression are 12-18 % too stiff on four layers
   (``test_bending_locking``).
-* ``ans_tbar``: m = T = (f3 . C~^-1 . f3)^(-1/2), the stretch normal to the deformed fibre plane (the exponential of
-  fabric_hyper's compaction invariant; f3 the reference through-thickness direction, third row of the frame), and
-  m_bar = (1/V0) sum_q w_q T~_q. Only thickness changes are coupled into the fibre stretch, the fibre stretch's own
-  gradient (bending) is left to the element: cantilevers as ``ans``, the three-point-bending indicator as F-bar's.
-  Not a cure for volumetric locking (T is not the volume).
+* ``ans_tbar``: m = T = (f3 . C^-1 . f3)^(-1/2), the stretch normal to the deformed fibre plane from the *true* C
+  (the exponential of fabric_hyper's compaction invariant; f3 the reference through-thickness direction, third row
+  of the frame), m_bar = (1/V0) sum_q w_q T_q, and the material is given F~' in place of F~, the assumed-shear
+  gradient with its thickness stretch set to the true one:
 
-For every affine motion F~ = F and m~ is uniform, so r = 1: the patch stress and the objectivity of ``ans`` are
-kept (r is a ratio of invariants of C~).
+      F~' = F~ + (T - T~) T~ k~ (x) f3,   k~ = F~^-T f3,   C~' = F~'^T F~' = C~ + (T^2 - T~^2) f3 (x) f3,
+
+  which keeps C~'s fibre stretches, in-plane and transverse shears and sets f3 . C~'^-1 . f3 = 1 / T^2 (rank-one
+  update, Sherman-Morrison). Why: C~ keeps the true normal strain along f3 (C_33 = |F f3|^2) but drops the
+  shear part of it, so T~ from C~ overstates the thickness wherever the true transverse shear exceeds the assumed
+  one. In the keystone mode of a bent hexahedron (its thickness edges fanned out, top face shorter than the bottom)
+  T~ stays near its rest value while the true thickness at two corners goes to zero: the tetrahedron's apex element
+  on 5 mm crushed so (true T 0.02 and 0.00 at two points where T~ read 0.66, recomputed from the frame before
+  the inversion), with no compaction energy to stop it. In pure bending (u_x = kappa x z) the true T is exactly 1
+  while T~ = (1 + kappa^2 x^2)^(1/2), so the update also removes a second-order thickness stretch of bending.
+  Only thickness changes are coupled into the fibre stretch, the fibre stretch's own gradient (bending) is left
+  to the element: cantilevers as ``ans``, the three-point-bending indicator as F-bar's. Not a cure for volumetric
+  locking (T is not the volume).
+
+For every affine motion F~ = F and the point measures are uniform, so r = 1 (and F~' = F~): the patch stress and
+the objectivity of ``ans`` are kept (r and T are invariants of C~ and C).
 
 Forces, exact derivatives of W = sum_q w_q psi(F^_q). With S^ = F^-1 P^ (the law's second Piola-Kirchhoff stress
-at F^) and p_q = (P^ : F^) / 3 = r (P^ : F~) / 3, as in F-bar (de Souza Neto, Peric, Dutko and Owen, Design of simple
-low order finite elements for large strain analysis of nearly incompressible solids, 1996):
+at F^) and p_q = (P^ : F^) / 3, as in F-bar (de Souza Neto, Peric, Dutko and Owen, Design of simple low order
+finite elements for large strain analysis of nearly incompressible solids, 1996):
 
-    dW = sum_q w_q [1/2 r^2 S^ : dC~_q - p_q d ln m~_q] + (sum_q w_q p_q) d ln m_bar.
+    dW = sum_q w_q [1/2 r^2 S^ : dC'_q - p_q d ln m_q] + (sum_q w_q p_q) d ln m_bar,
 
-``ans_fbar``: d ln m~ = 1/2 C~^-1 : dC~, so the first part is ``hex8_ans.forces_ans`` fed with the stress
-P_eff = F~ (r^2 S^ - p C~^-1) = r P^ - p F~^-T (that kernel takes S = F~^-1 P_eff), and the second part is F-bar's
-mean-dilatation force (pbar / J_bar) sum_q w_q cof F_q . dN_q, pbar the volume average of p.
-``ans_tbar``: d ln T~ = 1/2 (n (x) n) : dC~ / (f3 . n), n = C~^-1 f3, and m_bar is itself a function of the C~_q, so
-everything goes through ``forces_ans`` with P_eff = r P^ + (pbar T~ / T_bar - p) F~^-T f3 (x) n / (f3 . n).
+with C' the gradient the material is given before the ratio (C~ for ``ans_fbar``, C~' for ``ans_tbar``).
+``ans_fbar``: m = det F~ at the point, d ln m = 1/2 C~^-1 : dC~, so the first part is ``hex8_ans.forces_ans``
+fed with the stress P_eff = F~ (r^2 S^ - p C~^-1) = r P^ - p F~^-T (that kernel takes S = F~^-1 P_eff), and the
+second part is F-bar's mean-dilatation force (pbar / J_bar) sum_q w_q cof F_q . dN_q, pbar the volume average of p.
+``ans_tbar``: with s33 = f3 . S^ . f3, d(T~^2) = T~^4 (m~ (x) m~) : dC~ (m~ = C~^-1 f3) and d ln T = 1/2 T^2
+(m (x) m) : dC (m = C^-1 f3, true C), dW splits into a part through dC~, the stress S_A = r^2 (S^ - s33 T~^4 m~ (x)
+m~) given to ``forces_ans``, and a part through the true C, b_q d ln T_q with b = r^2 s33 T^2 - p + pbar T / T_bar
+(``add_thickness_forces``: node a receives w_q b_q T_q^2 k_q (m_q . dN_qa), k = F^-T f3).
 
 Stable step: the ``element_dt`` rule with F-bar's coupling 1/9; without it the estimate exceeds the exact critical
 step of thin fabric meshes (exact / estimate 0.63-0.77, ``test_bending_locking``).
@@ -53,7 +69,7 @@ import numpy as np
 from fdeck.compile.errors import CompileError
 from fdeck.jit import njit_parallel, prange
 from fdeck.physics.elements.hex8 import _det_at, _inline, mean_pressure
-from fdeck.physics.elements.hex8_ans import CHUNK, Hex8AnsGroup, forces_ans, kinematics_ans
+from fdeck.physics.elements.hex8_ans import CHUNK, Hex8AnsGroup, _inv_at, forces_ans, kinematics_ans
 from fdeck.registry import FormulationKind, register_formulation
 
 COUPLING = 1.0 / 9.0
@@ -161,9 +177,9 @@ class Hex8AnsFbarGroup(Hex8AnsGroup):
 
 @_inline
 def _thickness_direction(Fans, frame, e, q, d, G, k):
-    """k = F~^-T f3 for point (e, q) into k (3,), with G (3, 3) scratch holding F~^-1 and d = det F~ (the caller's,
-    computed once); returns |k|^2 = f3 . C~^-1 . f3 = 1 / T~^2 (T~ the thickness stretch normal to the deformed
-    fibre plane)."""
+    """k = F^-T f3 for point (e, q) of a gradient field Fans (n_el, n_qp, 3, 3) into k (3,), with G (3, 3) scratch
+    holding F^-1 and d = det F (the caller's, computed once); returns |k|^2 = f3 . C^-1 . f3 = 1 / T^2 (T the
+    thickness stretch normal to the deformed fibre plane)."""
     r = 1.0 / d
     for i in range(3):
         i1, i2 = (i + 1) % 3, (i + 2) % 3
@@ -178,12 +194,21 @@ def _thickness_direction(Fans, frame, e, q, d, G, k):
     return n2
 
 
+@_inline
+def _thickness(F, frame, e, q, G, k):
+    """T = (f3 . C^-1 . f3)^(-1/2) at point (e, q) of F (n_el, n_qp, 3, 3), k = F^-T f3 and G = F^-1 left in the
+    scratch (3,) and (3, 3); nan when det F <= 0."""
+    d = _det_at(F, e, q)
+    return 1.0 / math.sqrt(_thickness_direction(F, frame, e, q, d, G, k)) if d > 0.0 else np.nan
+
+
 @njit_parallel
-def tbar_on_ans(w, Fans, frame, T, Tbar, ratio, Fmat):
-    """Fmat (n_el, 8, 3, 3) = ratio F~, ratio (n_el, 8) = (Tbar / T~)^(1/3), with T~ (n_el, 8) =
-    (f3 . C~^-1 . f3)^(-1/2) the stretch normal to the deformed fibre plane (exp of fabric_hyper's compaction
-    invariant) and Tbar (n_el,) its volume average; frame (n_el, 3, 3) rows f1, f2, f3. A non-positive det F~
-    gives nan."""
+def tbar_on_ans(w, F, Fans, frame, T, Tans, Tbar, ratio, Fmat):
+    """Fmat (n_el, 8, 3, 3) = ratio F~', F~' = F~ + (T - T~) T~ k~ (x) f3 the assumed-shear gradient with its
+    thickness stretch set to the true one (k~ = F~^-T f3; F~'^T F~' = C~ + (T^2 - T~^2) f3 (x) f3), ratio (n_el, 8)
+    = (Tbar / T)^(1/3). T (n_el, 8) = (f3 . C^-1 . f3)^(-1/2) from the true F, the stretch normal to the deformed
+    fibre plane (exp of fabric_hyper's compaction invariant), Tans (n_el, 8) the same of F~, Tbar (n_el,) the volume
+    average of T; frame (n_el, 3, 3) rows f1, f2, f3. A non-positive det F or det F~ gives nan."""
     n_el, n_qp = w.shape
     for chunk in prange((n_el + CHUNK - 1) // CHUNK):
         G = np.empty((3, 3))
@@ -192,54 +217,107 @@ def tbar_on_ans(w, Fans, frame, T, Tbar, ratio, Fmat):
             vol = 0.0
             tw = 0.0
             for q in range(n_qp):
-                d = _det_at(Fans, e, q)
-                t = 1.0 / math.sqrt(_thickness_direction(Fans, frame, e, q, d, G, k)) if d > 0.0 else np.nan
+                t = _thickness(F, frame, e, q, G, k)
+                ta = _thickness(Fans, frame, e, q, G, k)
                 T[e, q] = t
+                Tans[e, q] = ta
                 vol += w[e, q]
                 tw += w[e, q] * t
+                c = (t - ta) * ta
+                for i in range(3):
+                    for j in range(3):
+                        Fmat[e, q, i, j] = Fans[e, q, i, j] + c * k[i] * frame[e, 2, j]
             Tbar[e] = tw / vol
             for q in range(n_qp):
                 r = (Tbar[e] / T[e, q]) ** (1.0 / 3.0)
                 ratio[e, q] = r
                 for i in range(3):
                     for j in range(3):
-                        Fmat[e, q, i, j] = r * Fans[e, q, i, j]
+                        Fmat[e, q, i, j] *= r
 
 
 @njit_parallel
-def stress_ans_tbar(Fans, frame, T, Tbar, ratio, Pmat, w, p, Peff):
-    """Peff (n_el, 8, 3, 3) = F~ S_eff [MPa], S_eff = r^2 S^ + (pbar T~ / Tbar - p) m (x) m / (f3 . m), m = C~^-1 f3,
-    p = r (P^ : F~) / 3 (n_el, 8) [MPa] and pbar its volume average: the whole dW through dC~ (Tbar is itself a
-    function of the C~_q). Pmat = dpsi/dF^ (n_el, 8, 3, 3) from the material at F^ = r F~."""
+def stress_ans_tbar(Fans, frame, T, Tans, Tbar, ratio, Fmat, Pmat, w, p, Peff, b):
+    """The two stresses of dW (module docstring): Peff (n_el, 8, 3, 3) = F~ S_A [MPa], S_A = r^2 (S^ - s33 T~^4
+    m~ (x) m~), the part through dC~ (``forces_ans``), with S^ = F^^-1 P^ the law's second Piola-Kirchhoff stress,
+    s33 = f3 . S^ . f3 and m~ = C~^-1 f3; b (n_el, 8) = r^2 s33 T^2 - p + pbar T / Tbar [MPa], the factor of
+    d ln T through the true C (``add_thickness_forces``); p = (P^ : F^) / 3 (n_el, 8) [MPa], pbar its volume
+    average. Pmat = dpsi/dF^ (n_el, 8, 3, 3) from the material at F^ = Fmat."""
+    n_el, n_qp = w.shape
+    for chunk in prange((n_el + CHUNK - 1) // CHUNK):
+        G = np.empty((3, 3))
+        S = np.empty((3, 3))
+        k = np.empty(3)
+        m = np.empty(3)
+        for e in range(chunk * CHUNK, min(n_el, (chunk + 1) * CHUNK)):
+            vol = 0.0
+            pw = 0.0
+            for q in range(n_qp):
+                pf = 0.0
+                for i in range(3):
+                    for j in range(3):
+                        pf += Pmat[e, q, i, j] * Fmat[e, q, i, j]
+                p[e, q] = pf / 3.0
+                pw += w[e, q] * p[e, q]
+                vol += w[e, q]
+            pbar = pw / vol
+            for q in range(n_qp):
+                _inv_at(Fmat, e, q, G)
+                for i in range(3):
+                    for j in range(3):
+                        S[i, j] = G[i, 0] * Pmat[e, q, 0, j] + G[i, 1] * Pmat[e, q, 1, j] + G[i, 2] * Pmat[e, q, 2, j]
+                s33 = 0.0
+                for i in range(3):
+                    s33 += frame[e, 2, i] * (S[i, 0] * frame[e, 2, 0] + S[i, 1] * frame[e, 2, 1]
+                                             + S[i, 2] * frame[e, 2, 2])
+                r2 = ratio[e, q] * ratio[e, q]
+                t = T[e, q]
+                b[e, q] = r2 * s33 * t * t - p[e, q] + pbar * t / Tbar[e]
+                n2 = _thickness_direction(Fans, frame, e, q, _det_at(Fans, e, q), G, k)
+                for i in range(3):
+                    m[i] = G[i, 0] * k[0] + G[i, 1] * k[1] + G[i, 2] * k[2]  # C~^-1 f3 = F~^-1 F~^-T f3
+                c = r2 * s33 / (n2 * n2)  # r^2 s33 T~^4; F~ m~ = k~
+                for i in range(3):
+                    for j in range(3):
+                        fs = Fans[e, q, i, 0] * S[0, j] + Fans[e, q, i, 1] * S[1, j] + Fans[e, q, i, 2] * S[2, j]
+                        Peff[e, q, i, j] = r2 * fs - c * k[i] * m[j]
+
+
+@njit_parallel
+def add_thickness_forces(F, frame, T, b, dN, w, fe):
+    """fe (n_el, 8, 3) += sum_q w_q b_q d ln T_q / dx [N]: d ln T = 1/2 T^2 (m (x) m) : dC with m = C^-1 f3, so the
+    force on node a is w_q b_q T_q^2 k_q (m_q . dN_qa), k = F^-T f3 = F m; F (n_el, 8, 3, 3) the true gradient, b
+    (n_el, 8) [MPa] from ``stress_ans_tbar``, dN (n_el, 8, 8, 3) [1/mm], w (n_el, 8) [mm^3]."""
     n_el, n_qp = w.shape
     for chunk in prange((n_el + CHUNK - 1) // CHUNK):
         G = np.empty((3, 3))
         k = np.empty(3)
         m = np.empty(3)
         for e in range(chunk * CHUNK, min(n_el, (chunk + 1) * CHUNK)):
-            pbar = mean_pressure(Pmat, Fans, ratio, w, p, e)
             for q in range(n_qp):
-                n2 = _thickness_direction(Fans, frame, e, q, _det_at(Fans, e, q), G, k)
+                _thickness(F, frame, e, q, G, k)
                 for i in range(3):
-                    m[i] = G[i, 0] * k[0] + G[i, 1] * k[1] + G[i, 2] * k[2]  # C~^-1 f3 = F~^-1 F~^-T f3
-                c = (pbar * T[e, q] / Tbar[e] - p[e, q]) / n2
-                r = ratio[e, q]
-                # F~ (r^2 S^) = r P^ (S^ = F^-1 P^, F^ = r F~); F~ m = F~^-T f3 = k
-                for i in range(3):
-                    for j in range(3):
-                        Peff[e, q, i, j] = r * Pmat[e, q, i, j] + c * k[i] * m[j]
+                    m[i] = G[i, 0] * k[0] + G[i, 1] * k[1] + G[i, 2] * k[2]
+                c = w[e, q] * b[e, q] * T[e, q] * T[e, q]
+                for a in range(8):
+                    d = c * (m[0] * dN[e, q, a, 0] + m[1] * dN[e, q, a, 1] + m[2] * dN[e, q, a, 2])
+                    fe[e, a, 0] += d * k[0]
+                    fe[e, a, 1] += d * k[1]
+                    fe[e, a, 2] += d * k[2]
 
 
 class Hex8AnsTbarGroup(Hex8AnsGroup):
-    """Hexahedra of formulation ``ans_tbar``: as ``ans_fbar`` with the element mean of the thickness stretch
-    T = (f3 . C~^-1 . f3)^(-1/2) in place of the mean Jacobian (module docstring). ``Fans`` the assumed-shear
-    gradient, ``F_material`` = ratio Fans the one the material sees, ``T`` (n_el, 8), ``Tbar`` (n_el,)."""
+    """Hexahedra of formulation ``ans_tbar``: the assumed-shear gradient with its thickness stretch set to the true
+    one, and the element mean of that stretch T = (f3 . C^-1 . f3)^(-1/2) in place of ``ans_fbar``'s mean Jacobian
+    (module docstring). ``Fans`` the assumed-shear gradient, ``F_material`` the one the material sees, ``T`` and
+    ``Tans`` (n_el, 8) the thickness stretches of F and F~, ``Tbar`` (n_el,) the mean of T."""
 
     def __init__(self, name, formulation, X, conn, ids, material, params, frame, rho, hourglass=None):
         super().__init__(name, formulation, X, conn, ids, material, params, frame, rho, None)
         n_el = len(self.conn)
         self.Fans = self.F.copy()
-        self.T, self.ratio, self.p = np.ones((n_el, 8)), np.ones((n_el, 8)), np.zeros((n_el, 8))
+        self.T, self.Tans, self.ratio = np.ones((n_el, 8)), np.ones((n_el, 8)), np.ones((n_el, 8))
+        self.p, self.bT = np.zeros((n_el, 8)), np.zeros((n_el, 8))
         self.Tbar = np.ones(n_el)
         self.Peff = np.zeros_like(self.P)
         self.dt_coupling = COUPLING
@@ -249,11 +327,13 @@ class Hex8AnsTbarGroup(Hex8AnsGroup):
         a = self.ans
         kinematics_ans(x, self.conn, self.b, self.dN, self.w, a["dxi_s"], a["index"], a["Jinv"], a["Gq"], a["Gs"],
                        self.F, self.J, self.Fans, self.F0, self.gs)
-        tbar_on_ans(self.w, self.Fans, self.frame, self.T, self.Tbar, self.ratio, self.F_material)
+        tbar_on_ans(self.w, self.F, self.Fans, self.frame, self.T, self.Tans, self.Tbar, self.ratio, self.F_material)
         self.material.evaluate(self.F_material, self.frame, self.params, self.state, self.P, self.psi, self.modulus)
-        stress_ans_tbar(self.Fans, self.frame, self.T, self.Tbar, self.ratio, self.P, self.w, self.p, self.Peff)
+        stress_ans_tbar(self.Fans, self.frame, self.T, self.Tans, self.Tbar, self.ratio, self.F_material, self.P,
+                        self.w, self.p, self.Peff, self.bT)
         forces_ans(self.F, self.Fans, self.Peff, self.dN, self.w, self.b, a["dxi_s"], a["index"], a["Jinv"],
                    a["Gq"], a["Gs"], self.F0, self.gs, self.fe)
+        add_thickness_forces(self.F, self.frame, self.T, self.bT, self.dN, self.w, self.fe)
 
 
 GROUPS = {"ans_fbar": Hex8AnsFbarGroup, "ans_tbar": Hex8AnsTbarGroup}
