@@ -41,7 +41,11 @@ linear_elastic, neo_hookean) serves unchanged; W = sum_q w_q psi(C~_q) and the f
 S~ = J0^-1 (S - S_bar) J0^-T, S_bar the element's volume mean of S (the mean-free modification's share).
 
 Known limits: normal strains are fully integrated, so nearly incompressible isotropic laws lock volumetrically as
-with ``full`` (fabrics are compressible: use ``fbar`` for rubber); a trapezoidal (curved) element through a thin
+with ``full`` (fabrics are compressible: use ``fbar`` for rubber); C~ keeps the true normal strain along the
+thickness but not the shear part of it, so where the true transverse shear exceeds the assumed one (an element
+whose thickness edges fan out, as in bending) the thickness and volume read from C~ exceed the true ones, and an
+edge can be crushed through the thickness without the law's compaction seeing it (``ans_tbar`` gives its material
+the true thickness stretch: ``hex8_ans_fbar``, ``test_thickness_crush``); a trapezoidal (curved) element through a thin
 thickness keeps the thickness-strain locking that solid-shells cure by ANS on E_33; an extremely distorted state
 whose C~ is not positive definite gives nan (reported by the engine's inversion monitor).
 Units as in ``hex8``: x [mm], forces [N], stresses [MPa].

@@ -8,13 +8,13 @@ F-bar holds them back another way: F_bar = (J_bar / J)^(1/3) F passes a third of
 into the fibre stretch, so a thickness that varies along the fibre inside an element (the u_z ~ xi zeta pattern
 that dominates the `ans` run) meets the fibre stiffness. Both formulations here give the material
 
-    F^ = r F~,   r = (m_bar / m~)^(1/3),
+    F^ = r F',   r = (m_bar / m)^(1/3),
 
-with F~ the ``ans`` gradient (F~^T F~ = C~, the assumed-shear right Cauchy-Green tensor), m~ a scalar measure at
-the point and m_bar its element mean:
+with F' the ``ans`` gradient F~ (F~^T F~ = C~, the assumed-shear right Cauchy-Green tensor; for ``ans_tbar`` with
+its thickness stretch set to the true one, below), m a scalar measure at the point and m_bar its element mean:
 
-* ``ans_fbar``: m = det F. m~ = det F~, m_bar = (1/V0) sum_q w_q det F_q from the *true* F (m_bar V0 is the current
-  element volume). F-bar on top of the assumed shears: it cures volumetric locking of isotropic laws too, but with
+* ``ans_fbar``: m = det F~ at the point, m_bar = (1/V0) sum_q w_q det F_q from the *true* F (m_bar V0 is the
+  current element volume). F-bar on top of the assumed shears: it cures volumetric locking of isotropic laws too, but with
   a bimodular fabric it passes the element-scale volume change of the compressed, soft fibres into the stiff weft
   and compaction: cantilevers with 1 % fibre compression are 12-18 % too stiff on four layers
   (``test_bending_locking``).
@@ -25,8 +25,10 @@ the point and m_bar its element mean:
 
       F~' = F~ + (T - T~) T~ k~ (x) f3,   k~ = F~^-T f3,   C~' = F~'^T F~' = C~ + (T^2 - T~^2) f3 (x) f3,
 
-  which keeps C~'s fibre stretches, in-plane and transverse shears and sets f3 . C~'^-1 . f3 = 1 / T^2 (rank-one
-  update, Sherman-Morrison). Why: C~ keeps the true normal strain along f3 (C_33 = |F f3|^2) but drops the
+  which keeps C~'s fibre stretches and its in-plane and transverse shear components f_i . C~ . f_j (fabric_hyper's
+  transverse-shear invariants, normalised by f3 . C . f3, move with it) and sets f3 . C~'^-1 . f3 = 1 / T^2
+  (rank-one update, Sherman-Morrison). Why: C~ keeps the true normal strain along f3 (C_33 = |F f3|^2 on a
+  parallelepiped; the mean-free modification of ``hex8_ans`` adds to it on distorted elements) but drops the
   shear part of it, so T~ from C~ overstates the thickness wherever the true transverse shear exceeds the assumed
   one. In the keystone mode of a bent hexahedron (its thickness edges fanned out, top face shorter than the bottom)
   T~ stays near its rest value while the true thickness at two corners goes to zero: the tetrahedron's apex element
@@ -46,7 +48,7 @@ finite elements for large strain analysis of nearly incompressible solids, 1996)
 
     dW = sum_q w_q [1/2 r^2 S^ : dC'_q - p_q d ln m_q] + (sum_q w_q p_q) d ln m_bar,
 
-with C' the gradient the material is given before the ratio (C~ for ``ans_fbar``, C~' for ``ans_tbar``).
+with C' = F'^T F' (C~ for ``ans_fbar``, C~' for ``ans_tbar``).
 ``ans_fbar``: m = det F~ at the point, d ln m = 1/2 C~^-1 : dC~, so the first part is ``hex8_ans.forces_ans``
 fed with the stress P_eff = F~ (r^2 S^ - p C~^-1) = r P^ - p F~^-T (that kernel takes S = F~^-1 P_eff), and the
 second part is F-bar's mean-dilatation force (pbar / J_bar) sum_q w_q cof F_q . dN_q, pbar the volume average of p.
@@ -237,7 +239,7 @@ def tbar_on_ans(w, F, Fans, frame, T, Tans, Tbar, ratio, Fmat):
 
 
 @njit_parallel
-def stress_ans_tbar(Fans, frame, T, Tans, Tbar, ratio, Fmat, Pmat, w, p, Peff, b):
+def stress_ans_tbar(Fans, frame, T, Tbar, ratio, Fmat, Pmat, w, p, Peff, b):
     """The two stresses of dW (module docstring): Peff (n_el, 8, 3, 3) = F~ S_A [MPa], S_A = r^2 (S^ - s33 T~^4
     m~ (x) m~), the part through dC~ (``forces_ans``), with S^ = F^^-1 P^ the law's second Piola-Kirchhoff stress,
     s33 = f3 . S^ . f3 and m~ = C~^-1 f3; b (n_el, 8) = r^2 s33 T^2 - p + pbar T / Tbar [MPa], the factor of
@@ -329,8 +331,8 @@ class Hex8AnsTbarGroup(Hex8AnsGroup):
                        self.F, self.J, self.Fans, self.F0, self.gs)
         tbar_on_ans(self.w, self.F, self.Fans, self.frame, self.T, self.Tans, self.Tbar, self.ratio, self.F_material)
         self.material.evaluate(self.F_material, self.frame, self.params, self.state, self.P, self.psi, self.modulus)
-        stress_ans_tbar(self.Fans, self.frame, self.T, self.Tans, self.Tbar, self.ratio, self.F_material, self.P,
-                        self.w, self.p, self.Peff, self.bT)
+        stress_ans_tbar(self.Fans, self.frame, self.T, self.Tbar, self.ratio, self.F_material, self.P, self.w,
+                        self.p, self.Peff, self.bT)
         forces_ans(self.F, self.Fans, self.Peff, self.dN, self.w, self.b, a["dxi_s"], a["index"], a["Jinv"],
                    a["Gq"], a["Gs"], self.F0, self.gs, self.fe)
         add_thickness_forces(self.F, self.frame, self.T, self.bT, self.dN, self.w, self.fe)
