@@ -159,7 +159,7 @@ def _ans_tbar_parts(g, x) -> dict:
     return {
         "kinematics_ans": lambda: ha.kinematics_ans(x, g.conn, g.b, g.dN, g.w, a["dxi_s"], a["index"], a["Jinv"],
                                                     a["Gq"], a["Gs"], g.F, g.J, g.Fans, g.F0, g.gs),
-        "tbar_on_ans": lambda: hf.tbar_on_ans(g.w, g.F, g.Fans, g.frame, g.T, g.Tans, g.Tbar, g.ratio, g.F_material),
+        "tbar_on_ans": lambda: hf.tbar_on_ans(g.w, g.F, g.Fans, g.frame, g.T, g.Tbar, g.ratio, g.F_material),
         "law": lambda: m.evaluate(g.F_material, g.frame, g.params, g.state, g.P, g.psi, g.modulus),
         "stress_ans_tbar": lambda: hf.stress_ans_tbar(g.Fans, g.frame, g.T, g.Tbar, g.ratio, g.F_material, g.P,
                                                       g.w, g.p, g.Peff, g.bT),

@@ -205,11 +205,11 @@ def _thickness(F, frame, e, q, G, k):
 
 
 @njit_parallel
-def tbar_on_ans(w, F, Fans, frame, T, Tans, Tbar, ratio, Fmat):
+def tbar_on_ans(w, F, Fans, frame, T, Tbar, ratio, Fmat):
     """Fmat (n_el, 8, 3, 3) = ratio F~', F~' = F~ + (T - T~) T~ k~ (x) f3 the assumed-shear gradient with its
     thickness stretch set to the true one (k~ = F~^-T f3; F~'^T F~' = C~ + (T^2 - T~^2) f3 (x) f3), ratio (n_el, 8)
     = (Tbar / T)^(1/3). T (n_el, 8) = (f3 . C^-1 . f3)^(-1/2) from the true F, the stretch normal to the deformed
-    fibre plane (exp of fabric_hyper's compaction invariant), Tans (n_el, 8) the same of F~, Tbar (n_el,) the volume
+    fibre plane (exp of fabric_hyper's compaction invariant), T~ the same of F~ (not kept), Tbar (n_el,) the volume
     average of T; frame (n_el, 3, 3) rows f1, f2, f3. A non-positive det F or det F~ gives nan."""
     n_el, n_qp = w.shape
     for chunk in prange((n_el + CHUNK - 1) // CHUNK):
@@ -222,7 +222,6 @@ def tbar_on_ans(w, F, Fans, frame, T, Tans, Tbar, ratio, Fmat):
                 t = _thickness(F, frame, e, q, G, k)
                 ta = _thickness(Fans, frame, e, q, G, k)
                 T[e, q] = t
-                Tans[e, q] = ta
                 vol += w[e, q]
                 tw += w[e, q] * t
                 c = (t - ta) * ta
@@ -311,14 +310,14 @@ def add_thickness_forces(F, frame, T, b, dN, w, fe):
 class Hex8AnsTbarGroup(Hex8AnsGroup):
     """Hexahedra of formulation ``ans_tbar``: the assumed-shear gradient with its thickness stretch set to the true
     one, and the element mean of that stretch T = (f3 . C^-1 . f3)^(-1/2) in place of ``ans_fbar``'s mean Jacobian
-    (module docstring). ``Fans`` the assumed-shear gradient, ``F_material`` the one the material sees, ``T`` and
-    ``Tans`` (n_el, 8) the thickness stretches of F and F~, ``Tbar`` (n_el,) the mean of T."""
+    (module docstring). ``Fans`` the assumed-shear gradient, ``F_material`` the one the material sees, ``T``
+    (n_el, 8) the thickness stretch of the true F, ``Tbar`` (n_el,) its element mean."""
 
     def __init__(self, name, formulation, X, conn, ids, material, params, frame, rho, hourglass=None):
         super().__init__(name, formulation, X, conn, ids, material, params, frame, rho, None)
         n_el = len(self.conn)
         self.Fans = self.F.copy()
-        self.T, self.Tans, self.ratio = np.ones((n_el, 8)), np.ones((n_el, 8)), np.ones((n_el, 8))
+        self.T, self.ratio = np.ones((n_el, 8)), np.ones((n_el, 8))
         self.p, self.bT = np.zeros((n_el, 8)), np.zeros((n_el, 8))
         self.Tbar = np.ones(n_el)
         self.Peff = np.zeros_like(self.P)
@@ -329,7 +328,7 @@ class Hex8AnsTbarGroup(Hex8AnsGroup):
         a = self.ans
         kinematics_ans(x, self.conn, self.b, self.dN, self.w, a["dxi_s"], a["index"], a["Jinv"], a["Gq"], a["Gs"],
                        self.F, self.J, self.Fans, self.F0, self.gs)
-        tbar_on_ans(self.w, self.F, self.Fans, self.frame, self.T, self.Tans, self.Tbar, self.ratio, self.F_material)
+        tbar_on_ans(self.w, self.F, self.Fans, self.frame, self.T, self.Tbar, self.ratio, self.F_material)
         self.material.evaluate(self.F_material, self.frame, self.params, self.state, self.P, self.psi, self.modulus)
         stress_ans_tbar(self.Fans, self.frame, self.T, self.Tbar, self.ratio, self.F_material, self.P, self.w,
                         self.p, self.Peff, self.bT)
