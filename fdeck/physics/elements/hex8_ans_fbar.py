@@ -178,8 +178,8 @@ class Hex8AnsFbarGroup(Hex8AnsGroup):
 
 
 @_inline
-def _thickness_direction(Fans, frame, e, q, d, G, k):
-    """k = F^-T f3 for point (e, q) of a gradient field Fans (n_el, n_qp, 3, 3) into k (3,), with G (3, 3) scratch
+def _thickness_direction(F, frame, e, q, d, G, k):
+    """k = F^-T f3 for point (e, q) of a gradient field F (n_el, n_qp, 3, 3) into k (3,), with G (3, 3) scratch
     holding F^-1 and d = det F (the caller's, computed once); returns |k|^2 = f3 . C^-1 . f3 = 1 / T^2 (T the
     thickness stretch normal to the deformed fibre plane)."""
     r = 1.0 / d
@@ -188,7 +188,7 @@ def _thickness_direction(Fans, frame, e, q, d, G, k):
         for j in range(3):
             j1, j2 = (j + 1) % 3, (j + 2) % 3
             # (F^-1)_ji = cof(F)_ij / det F
-            G[j, i] = (Fans[e, q, i1, j1] * Fans[e, q, i2, j2] - Fans[e, q, i1, j2] * Fans[e, q, i2, j1]) * r
+            G[j, i] = (F[e, q, i1, j1] * F[e, q, i2, j2] - F[e, q, i1, j2] * F[e, q, i2, j1]) * r
     n2 = 0.0
     for i in range(3):
         k[i] = G[0, i] * frame[e, 2, 0] + G[1, i] * frame[e, 2, 1] + G[2, i] * frame[e, 2, 2]
