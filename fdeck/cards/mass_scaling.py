@@ -45,6 +45,14 @@ class MassScaling(Card):
         "which added mass does not slow). The kinetic energy that mass brings is booked as work "
         "(`mass_tracking_work`), the added mass is a history column (`tracked_added_mass`, per cent of the "
         "physical mass). LS-DYNA adds conventional mass during a run in the same way (negative DT2MS).")
+    track_momentum: bool = Field(
+        False, description="With `track_target`: when tracking adds mass, the velocities are corrected (one more "
+        "conjugate-gradient solve on that cycle) so that the momentum of every dof, (M + dM) v, is what it was "
+        "before: the new mass joins at rest relative to its element's rigid motion, the deformation modes slow down "
+        "and the kinetic energy that removes is booked (`mass_tracking_work` falls). Without it the new mass takes "
+        "the current velocities and the kinetic energy it carries is created (booked as positive work): an element "
+        "crushed fast gets mass at its crushing speed, which crushes it further (runaway seen on the 3 mm "
+        "tetrahedron; README, Known limits). Off by default so runs measured before it keep their numbers.")
     cg_tolerance: float = Field(
         CG_TOLERANCE, gt=0, lt=1, description="Selective scaling: the conjugate-gradient solve stops when the "
         "residual's norm (weighted by the inverse diagonal) falls below this fraction of the right-hand side's (the "
@@ -65,6 +73,8 @@ class MassScaling(Card):
                                       or (self.selective and self.target_dt is not None)):
             raise ValueError("`track_target` keeps a selective target during the step: give `selective_target_dt`, "
                              "or `target_dt` with `selective: true`")
+        if self.track_momentum and not self.track_target:
+            raise ValueError("`track_momentum` corrects the velocities when tracking adds mass: give `track_target`")
         if not isinstance(self.track_target, bool) and not 0 < self.track_target <= self.selective_target:
             raise ValueError(f"`track_target` as a step must lie in (0, {self.selective_target:g}] s, the "
                              "selective target (it is the floor kept below it)")

@@ -470,6 +470,34 @@ class SelectiveMass:
         self._vn[touched] = 0.5 * (v_old[touched] + v[touched])  # the only nodes _kinetic_of reads
         return _kinetic_of(self._vn, self.conn, self.X, self.Xc, self.Jinv, dc, idx)
 
+    def conserve(self, idx: np.ndarray, dc: np.ndarray, v: np.ndarray) -> float:
+        """After ``add`` raised elements idx (k,) by dc (k,) [t]: correct the velocities v (n_node, 3) [mm/s] on the
+        free dofs so that (M + dM) v keeps the value it had with the mass before the raise (the prescribed dofs keep
+        theirs). The new mass joins at rest relative to each element's rigid motion: momentum and the lumped
+        translational momentum 1^T M v are kept (to the solve's tolerance), the deformation modes slow down.
+        Returns the change of kinetic energy 1/2 v^T (M + dM) v [mJ], at most 0 (to the solve's tolerance).
+
+        The solve (M + dM)_ff dv_f = -(dM_raise v)_f by the cycle's conjugate gradients, from dv = 0, with the
+        step's tolerance and cap (counted in the cycle's iterations; no contact springs: they are stiffness, not
+        mass). Costs about one cycle's solve on the cycles that raise."""
+        n_el = len(self.c)
+        raise_c = np.zeros(n_el)
+        raise_c[idx] = dc
+        old_c = self.c - raise_c
+        ke_old = self.kinetic(v, old_c) + 0.5 * float(np.einsum("i,ij,ij->", self.m, v, v))
+        rows, q, res, z, p = self._work
+        element_rows(v, self.conn, self.X, self.Xc, self.Jinv, raise_c, rows)
+        r = self._r
+        gather_added(rows, self.ptr, self.elems, self.X, v, r)
+        r *= -1.0
+        dv = np.zeros_like(v)
+        snode, sK, _ = self._no_springs
+        it, _ = solve(dv, r, self.m, self.conn, self.X, self.Xc, self.Jinv, self.c, self.ptr, self.elems, self.free,
+                      self.dinv, self.tol, self.max_it, rows, q, res, z, p, self._part, snode, sK, 0.0)
+        self.iterations += it
+        v += dv * self.free
+        return self.kinetic(v, self.c) + 0.5 * float(np.einsum("i,ij,ij->", self.m, v, v)) - ke_old
+
     def accelerate(self, v, v_old, f_ext, f_int, f_damp, dt_avg, springs=None, dt=0.0) -> None:
         """After the lumped kick and the constraints: a_c = (v - v_old) / dt_avg on prescribed dofs, a_f from the
         solve with r = f_ext - f_int + f_damp, v = v_old + dt_avg a on free dofs; then g = dM a. With implicit

@@ -51,7 +51,7 @@ omega_t)^2), where a target at the hinges' bound itself would need an infinite m
 
 
 class SelectiveMassEffect(Effect):
-    deck_settings = ("selective", "targets")  # per step, from the deck: not saved (engine.snapshot)
+    deck_settings = ("selective", "targets", "momentum_steps")  # per step, from the deck: not saved (engine.snapshot)
     name = "selective_mass"
     solves_mass = True  # the engine hands it the accelerations of every cycle (``engine.solver``)
     terms = (Term("added_kinetic_energy", VALUE), Term("cg_iterations_mean", VALUE),
@@ -60,11 +60,13 @@ class SelectiveMassEffect(Effect):
                       Term("tracked_elements", VALUE))
 
     def __init__(self, groups: list, X: np.ndarray, selective: list[bool], targets: list[float | None],
-                 stiff: list = ()):
+                 stiff: list = (), momentum: list[bool] | None = None):
         self.solver = SelectiveMass([g.conn for g in groups], X)
         self.groups = groups
         self.selective = selective
         self.targets = targets  # per step: the step kept during it [s], or None
+        self.momentum_steps = list(momentum) if momentum is not None else [False] * len(targets)
+        self.momentum = False  # this step's: tracking keeps (M + dM) v (``SelectiveMass.conserve``)
         if any(t is not None for t in targets):
             self.terms = self.terms + self.tracking_terms
         self.physical = sum(float(g.mass(g.rho).sum()) for g in groups)  # [t], before any scaling
@@ -92,6 +94,7 @@ class SelectiveMassEffect(Effect):
                       and self.plan is not None and same_masses(self.plan, plan))
         self.plan = plan
         self.track_dt = self.targets[index]
+        self.momentum = self.momentum_steps[index]
         if not self.carry:
             self.tracked_mass = 0.0
             for a in self.extra:
@@ -149,6 +152,7 @@ class SelectiveMassEffect(Effect):
         omega_t above omega_b). Returns the groups' new smallest continuum steps [s]."""
         target = keep / safety  # element step to reach [s]
         out = list(group_dt)
+        raised = []  # (elements, added c_e) per group, for the momentum correction
         for i, g in enumerate(self.groups):
             wb2 = None if rotation_omega2 is None else rotation_omega2[i]
             if wb2 is None:
@@ -168,12 +172,19 @@ class SelectiveMassEffect(Effect):
             self.extra[i][low] += drho
             de = drho * self.unit_mass[i][low]  # added element mass [t]
             n = g.conn.shape[1]
-            self.tracking_work += self.solver.add(self.offsets[i] + low, de / n, v, v_old)
+            if self.momentum:  # the velocities are corrected once, after every group's raise
+                self.solver.add(self.offsets[i] + low, de / n)
+                raised.append((self.offsets[i] + low, de / n))
+            else:
+                self.tracking_work += self.solver.add(self.offsets[i] + low, de / n, v, v_old)
             self.tracked_mass += float(de.sum()) * (1.0 - 2.0 / n)  # the plan's trace measure of added mass
             self.tracked[self.offsets[i] + low] = True
             # the step goes as sqrt(rho) at fixed moduli: the raised elements' steps without a pass over all
             g.dt_e[low] *= np.sqrt(factor)
             out[i] = float(g.dt_e.min())
+        if raised:
+            idx, dc = (np.concatenate(a) for a in zip(*raised))
+            self.tracking_work += self.solver.conserve(idx, dc, v)
         return out
 
     def describe(self, plan) -> str | None:
@@ -220,7 +231,8 @@ def build(cards: list, ctx) -> SelectiveMassEffect | None:
     if problems:
         raise CompileError(problems)
     targets = [c.tracked_dt if on else None for c, on in zip(cards, selective)]
-    return SelectiveMassEffect(ctx.groups, ctx.X, selective, targets, own)
+    momentum = [bool(on and c.track_momentum) for c, on in zip(cards, selective)]
+    return SelectiveMassEffect(ctx.groups, ctx.X, selective, targets, own, momentum)
 
 
 register_effect(EffectKind("mass_scaling", build))
