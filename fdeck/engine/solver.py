@@ -318,7 +318,7 @@ def _run(problem, sink: Sink, should_stop, resume) -> Result:
         hinge_dt = min([2.0 / math.sqrt(w.max()) for w in wb2 if w is not None and w.max() > 0.0], default=math.inf)
         keep = min(sms.track_dt, safety * effect_dt, safety * sms.reach * hinge_dt)
         if safety * min(group_dt + [stiff_dt]) < keep * (1.0 - 1e-9):
-            group_dt = sms.track(group_dt, keep, safety, v, v_old, wb2)
+            group_dt = sms.track(group_dt, keep, safety, v, v_old, wb2, (f_ext, f_int, f_damp), dt_prev)
             stiff_dt = min([e.stable_dt() for e in sms.stiff], default=math.inf)  # with the new mass
         follow_dt = min([e.stable_dt() for e in follow], default=math.inf)  # from the elements' steps as they are now
         return safety * min(group_dt + [effect_dt, stiff_dt, follow_dt])

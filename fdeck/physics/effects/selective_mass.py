@@ -13,6 +13,13 @@ element steps each cycle; elements below the target get their density (and so be
 moment, 1/2 dc_e |(I - P_e) v_e|^2, is booked as work (``mass_tracking_work``): the balance stays closed. Only the
 deformation modes get the mass, so momentum and translational inertia stay those of the step's lumped mass.
 
+That booked energy is created: an element crushed fast gets mass at its crushing speed, the energy crushes it
+further and its step falls again (the 3 mm tetrahedron blew up so at 52.5 mm, kinetic energy and booked work
+growing together). With ``track_momentum`` the raise instead keeps the momentum of every free dof, (M + dM) v, by
+one more solve (``SelectiveMass.conserve``): the new mass joins at rest relative to its element's rigid motion,
+the deformation modes slow, and the energy change booked is at most zero where no dof is prescribed (a prescribed
+velocity still gives the new mass its own share).
+
 ``ke`` (the ``added_kinetic_energy`` term) is computed on the cycles that write a history row (and the first):
 between rows it holds the last row's value, which nothing reads (``engine.selective_mass.SelectiveMass.book``).
 
@@ -51,7 +58,8 @@ omega_t)^2), where a target at the hinges' bound itself would need an infinite m
 
 
 class SelectiveMassEffect(Effect):
-    deck_settings = ("selective", "targets", "momentum_steps")  # per step, from the deck: not saved (engine.snapshot)
+    # per step, from the deck: not saved (engine.snapshot)
+    deck_settings = ("selective", "targets", "momentum_steps", "momentum")
     name = "selective_mass"
     solves_mass = True  # the engine hands it the accelerations of every cycle (``engine.solver``)
     terms = (Term("added_kinetic_energy", VALUE), Term("cg_iterations_mean", VALUE),
@@ -142,14 +150,16 @@ class SelectiveMassEffect(Effect):
         return out
 
     def track(self, group_dt: list[float], keep: float, safety: float, v: np.ndarray, v_old: np.ndarray,
-              rotation_omega2: list | None = None) -> list[float]:
+              rotation_omega2: list | None = None, forces: tuple | None = None, dt: float = 0.0) -> list[float]:
         """Keep the step at ``keep`` [s] (``track_dt``, or less where an effect such as contact bounds the step
         anyway: mass beyond that would slow the blank and buy nothing): every element whose continuum step (dt_e,
         as the group computed it this cycle) is below its target gets the density rho_e (HEADROOM target_e /
         dt_e)^2, i.e. more mass on its deformation modes only (translational mass unchanged). The target is
         keep / safety, or with the hinges' omega_b^2 of ``rotation_omega2`` (per group, (n_el,) or None) the
         continuum step 2 / sqrt(omega_t^2 - omega_b^2) that brings the element to keep / safety (the engine keeps
-        omega_t above omega_b). Returns the groups' new smallest continuum steps [s]."""
+        omega_t above omega_b). With ``track_momentum`` the velocities v are then corrected (``SelectiveMass.conserve``;
+        forces = (f_ext, f_int, f_damp) at t_n+1 and dt the step just taken, for its booking). Returns the groups'
+        new smallest continuum steps [s]."""
         target = keep / safety  # element step to reach [s]
         out = list(group_dt)
         raised = []  # (elements, added c_e) per group, for the momentum correction
@@ -184,7 +194,8 @@ class SelectiveMassEffect(Effect):
             out[i] = float(g.dt_e.min())
         if raised:
             idx, dc = (np.concatenate(a) for a in zip(*raised))
-            self.tracking_work += self.solver.conserve(idx, dc, v)
+            net = None if forces is None else forces[0] - forces[1] + forces[2]
+            self.tracking_work += self.solver.conserve(idx, dc, v, net, dt)
         return out
 
     def describe(self, plan) -> str | None:
