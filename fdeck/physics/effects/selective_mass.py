@@ -214,6 +214,9 @@ class SelectiveMassEffect(Effect):
         keep = f"; the target is kept during steps {tracked} (more mass as elements stiffen)" if tracked else ""
         if tracked and self.stiff:
             keep += f", at most {REACH:g} of the step the hinges of {', '.join(e.name for e in self.stiff)} allow"
+        corrected = [i for i in tracked if self.momentum_steps[i]]
+        if corrected:
+            keep += f"; velocities corrected as mass is added ((M + dM) v kept, track_momentum) in steps {corrected}"
         return (f"selective mass scaling (steps {steps}): translational mass as without it, added mass "
                 f"{100 * plan.added_mass:.3g} % of the physical (uniform and selective) on {int((beta > 0).sum())} "
                 f"of {len(beta)} elements "
