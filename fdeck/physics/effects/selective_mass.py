@@ -13,12 +13,13 @@ element steps each cycle; elements below the target get their density (and so be
 moment, 1/2 dc_e |(I - P_e) v_e|^2, is booked as work (``mass_tracking_work``): the balance stays closed. Only the
 deformation modes get the mass, so momentum and translational inertia stay those of the step's lumped mass.
 
-That booked energy is created: an element crushed fast gets mass at its crushing speed, the energy crushes it
-further and its step falls again (the 3 mm tetrahedron blew up so at 52.5 mm, kinetic energy and booked work
-growing together). With ``track_momentum`` the raise instead keeps the momentum of every free dof, (M + dM) v, by
-one more solve (``SelectiveMass.conserve``): the new mass joins at rest relative to its element's rigid motion,
-the deformation modes slow, and the energy change booked is at most zero where no dof is prescribed (a prescribed
-velocity still gives the new mass its own share).
+That booked energy is created: an element crushed fast gets mass at its crushing speed, and the energy can crush
+it further (the 3 mm tetrahedron on ``ans_tbar`` blew up at 52.5 mm with kinetic energy and booked work growing
+together). With ``track_momentum`` the raise instead keeps the momentum of every free dof, (M + dM) v, by one more
+solve (``SelectiveMass.conserve``): the new mass joins at rest relative to its element's rigid motion, the
+deformation modes slow, and the energy change booked is at most zero where no dof is prescribed (a prescribed
+velocity still gives the new mass its own share). That deck still fails with it, earlier and otherwise (README,
+Known limits).
 
 ``ke`` (the ``added_kinetic_energy`` term) is computed on the cycles that write a history row (and the first):
 between rows it holds the last row's value, which nothing reads (``engine.selective_mass.SelectiveMass.book``).
