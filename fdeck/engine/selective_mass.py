@@ -491,7 +491,7 @@ class SelectiveMass:
         raise_c, old_c, dv = self._raise
         raise_c[idx] = dc
         np.subtract(self.c, raise_c, out=old_c)
-        ke_old = self.kinetic(v, old_c) + 0.5 * float(np.einsum("i,ij,ij->", self.m, v, v))
+        ke_old = self._whole_kinetic(v, old_c)
         rows, q, res, z, p = self._work
         element_rows(v, self.conn, self.X, self.Xc, self.Jinv, raise_c, rows)
         r = self._r
@@ -506,10 +506,16 @@ class SelectiveMass:
         self.max_iterations = max(self.max_iterations, it)
         self.capped += it >= self.max_it
         v += dv  # zero on the prescribed dofs (the solve moves only free ones)
-        change = self.kinetic(v, self.c) + 0.5 * float(np.einsum("i,ij,ij->", self.m, v, v)) - ke_old
+        change = self._whole_kinetic(v, self.c) - ke_old
         if force is not None:
             change += 0.5 * dt * float(np.sum(force * dv))
         return change
+
+    def _whole_kinetic(self, v: np.ndarray, c: np.ndarray) -> float:
+        """1/2 v^T (M + dM) v [mJ] with the added-mass factors c (n_el,) [t], in ``book``'s scratch (free between
+        cycles: ``book`` refills it before it reads it)."""
+        _kinetic(v, self.conn, self.X, self.Xc, self.Jinv, c, self._ke)
+        return float(self._ke.sum()) + 0.5 * float(np.einsum("i,ij,ij->", self.m, v, v))
 
     def accelerate(self, v, v_old, f_ext, f_int, f_damp, dt_avg, springs=None, dt=0.0) -> None:
         """After the lumped kick and the constraints: a_c = (v - v_old) / dt_avg on prescribed dofs, a_f from the
