@@ -70,7 +70,7 @@ def added_mass_matrix(effect, n_node: int) -> np.ndarray:
 def test_added_mass_product_is_the_rigid_mode_complement():
     """Requirement: the solve's product dM p (element rows of seven numbers and node sums, ``element_rows`` and
     ``gather_added``) is sum_e c_e (I - P_e) p_e with P_e the orthogonal projector on the element's six rigid modes
-    at its reference positions (module docstring), on a distorted mesh far from the origin (the rows' cross
+    at the positions it is built with (module docstring; ``follow`` moves them), on a distorted mesh far from the origin (the rows' cross
     products cancel to a round-off that grows with |X| / |dX|) with two collapsed hexahedra (a node in two slots).
 
     Reference: dM assembled densely from the definition, P_e = Q Q^T with Q an orthonormal basis (QR) of the six
@@ -284,18 +284,21 @@ sm = SelectiveMass([conn], X)
 free = np.ones((n, 3)); free[:40] = 0.0
 sm.set_step([rng.uniform(0, 50, len(conn))], [np.full(len(conn), 1e-3)], rng.uniform(1e-4, 2e-4, n), free, (1e-8, 500))
 v, v_old = np.zeros((n, 3)), np.zeros((n, 3))
+booked = []
 for k in range(4):
     f = rng.normal(size=(n, 3))
     v_old[...] = v
     sm.accelerate(v, v_old, f, 0 * f, 0 * f, 1e-3)
-h = hashlib.sha256(sm.a.tobytes() + v.tobytes() + sm.g.tobytes()).hexdigest()
+    booked.append(sm.follow(X + 0.05 * rng.normal(size=X.shape), v))  # the rigid modes moved between solves
+h = hashlib.sha256(sm.a.tobytes() + v.tobytes() + sm.g.tobytes() + np.array(booked).tobytes()).hexdigest()
 print(numba.get_num_threads(), h + str(sm.iterations))
 """
 
 
 def test_solve_is_bitwise_the_same_on_one_and_two_threads():
     """Requirement: the per-cycle solve gives the same bits on 1 and 2 threads (a 720-element block, random added
-    masses and forces, some prescribed dofs, four warm-started solves to 1e-8): dot products are summed per fixed
+    masses and forces, some prescribed dofs, four warm-started solves to 1e-8, the rigid modes moved to perturbed
+    positions after each by ``follow``, its booked energies hashed too): dot products are summed per fixed
     chunk of nodes and the element products gathered in a fixed order. Tolerance: bitwise (one digest)."""
     assert len(digests_on_one_and_two_threads(DETERMINISM)) == 1
 
@@ -631,16 +634,19 @@ def test_tracking_with_bulk_viscosity_keeps_the_viscous_share_of_the_target():
         assert trk[col][-1] == pytest.approx(plain[col][-1], rel=0.015), name
 
 
-@pytest.mark.parametrize("D1, at, momentum", [(None, 200, False), (1000.0, 370, False), (None, 200, True)])
-def test_tracking_restart_is_bitwise(D1, at, momentum):
+@pytest.mark.parametrize("D1, at, momentum, duration", [(None, 200, False, 0.006), (1000.0, 616, False, 0.01),
+                                                        (None, 200, True, 0.006)])
+def test_tracking_restart_is_bitwise(D1, at, momentum, duration):
     """Requirement: the mass tracking adds (densities, added-mass factors, preconditioner, booked work) are part of
     a checkpoint, with fibre bending too: a run restarted between two tracking events (cycle ``at``: some mass
     already added, more to come) ends bitwise identical to the uninterrupted one (tolerance zero). With the hinges
     this guards their translational mass: computed from the tracked group density on restart it would differ
     (the first version did; measured 2026-11-27 by the review, checkpoint at cycle 375). With ``track_momentum``
-    the corrected velocities and the step's flag are restored too."""
+    the corrected velocities and the step's flag are restored too. The hinged strip is pulled over 0.01 s: with
+    the added mass's rigid modes following the elements its tracking adds at cycles 612-622 (over 0.006 s it added
+    once, at cycle 372, leaving no cycle between two adds)."""
     ms = {"target_dt": TRACK_TARGET, "selective": True, "track_target": True, "track_momentum": momentum}
-    data = warp_strip(ms, duration=0.006) if D1 is None else hinged_warp_strip(D1, ms, duration=0.006)
+    data = warp_strip(ms, duration=duration) if D1 is None else hinged_warp_strip(D1, ms, duration=duration)
     sink = _Capture(at=at)
     ref, h = run_history(data, sink)
     assert sink.state is not None and 0 < h["tracked_added_mass"][at] < h["tracked_added_mass"][-1]
@@ -741,8 +747,9 @@ def test_default_solve_tolerance_gives_the_answer_of_a_tight_solve():
     References: the same run solved to 1e-9 and to 1e-4. Tolerance 0.5 % on the reaction and the internal energy
     at the end: the tracking raises elements at discrete cycles, which any perturbation shifts, and the strip keeps
     a small oscillation (kinetic/internal 1e-4) whose phase moves with them: solved to 1e-5, 1e-4, 1e-3 and 1e-2 the
-    answers scatter by -0.24 % to +0.16 % about the 1e-9 run, not in the order of the tolerance (measured). The
-    default against 1e-4: within 1e-5 (0.1 % asserted). Iterations per cycle 4.8 against 6.0 (1e-4) and 17.6
+    reactions scatter by -0.48 % (1e-4) to +0.02 % (1e-3) about the 1e-9 run, not in the order of the tolerance
+    (measured 2026-11-29 with the rigid modes following the elements; with the reference ones -0.24 % to +0.16 %).
+    The default against 1e-4: within 0.6 % (that scatter). Iterations per cycle 4.6 against 6.1 (1e-4) and 17.6
     (1e-9); at most 0.9x the former default's asserted. The forming decks and the 3WEAVE cantilevers moved by at
     most 0.2 % against 1e-4 (README, *Fewer cycles*)."""
     from fdeck.cards.mass_scaling import CG_TOLERANCE
@@ -755,7 +762,7 @@ def test_default_solve_tolerance_gives_the_answer_of_a_tight_solve():
     print("iterations per cycle: default, 1e-4, 1e-9:", [h["cg_iterations_mean"][-1] for h in (default, former, tight)])
     for col in ("reaction_xmax_x", "internal_energy"):
         assert default[col][-1] == pytest.approx(tight[col][-1], rel=5e-3), col
-        assert default[col][-1] == pytest.approx(former[col][-1], rel=1e-3), col
+        assert default[col][-1] == pytest.approx(former[col][-1], rel=6e-3), col
     assert default["cg_iterations_mean"][-1] <= 0.9 * former["cg_iterations_mean"][-1]
     assert max(h["cg_capped_cycles"][-1] for h in (default, former, tight)) == 0
 
@@ -849,3 +856,114 @@ def test_momentum_correction_keeps_the_momentum_of_every_dof(prescribed):
     if not prescribed:
         assert np.abs((m[:, None] * v).sum(axis=0) - p_before).max() <= 1e-12 * np.abs(m[:, None] * v).sum()
         assert change < 0.0
+
+
+def rotation_y(angle: float) -> np.ndarray:
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
+def test_turned_blank_keeps_its_critical_step_with_the_rigid_modes_following():
+    """Requirement: the critical step of the selectively scaled mesh does not change when the mesh turns as a rigid
+    body (objectivity of the pencil (K, M + dM)), because ``follow`` takes each element's rigid modes at its
+    current positions; with the reference ones it falls. This was the 3 mm tetrahedron's runaway: at t = 0.6013 s
+    the assembled critical step (Lanczos on the whole blank) was 2.89e-5 s against the 3.0e-5 s run, its mode on the
+    flank beside the symmetry plane where the energy later grew, and 3.31e-5 s with the projectors at the current
+    positions (2026-11-29, README).
+
+    The 3WEAVE warp strip (8 x 2 x 2 F-bar hexahedra, selective target TARGET_FACTOR x its step: beta up to 105),
+    stretched 0.2 % along the warp (off the fibre law's switch at rest, where central differences average two
+    one-sided tangents and the average depends on the perturbation's direction), then turned by 60 degrees about y
+    (its thin direction tilts into x). Reference: the largest generalised eigenvalue of the stretched strip, K by
+    central differences (h = 1e-6 mm: truncation ~h^2 and round-off ~1e-16 |x| / h of the stiffness, about 1e-8
+    relative), M + dM from the engine's own products, every dof free (the deck's supports act along global axes,
+    which do not turn with the strip: with them the two differ by 7e-5). Asserted: turned and followed within 1e-6
+    of it (measured 7e-11); turned with the reference projectors at least 4x it (measured 17x: a reference rotation
+    of a turned element is a deformation carrying the translational mass alone); the preconditioner the diagonal of
+    the new M + dM to 1e-14; the energy ``follow`` returns, 1/2 v^T (dM' - dM) v for random v, the dense matrices'
+    to 1e-10 relative."""
+    from scipy.linalg import eigh
+
+    p = compile_deck(Deck.model_validate(warp_strip({"target_dt": TARGET_FACTOR * TRACK_TARGET / 4,
+                                                     "selective": True})))
+    g, plan = p.groups[0], p.steps[0]
+    g.set_density(plan.rho[0])
+    eff = selective_effect(p)
+    s = eff.solver
+    v0 = np.zeros_like(p.X)
+
+    def force(x):
+        f = np.zeros_like(x)
+        g.update(x, v0)
+        g.add_forces(f)
+        return f
+
+    def top(x):  # every dof free: the deck's supports are along global axes, which turn with the strip
+        K = central_stiffness(force, x, 1e-6)
+        return eigh(K, np.diag(np.repeat(s.m, 3)) + added_mass_matrix(eff, p.n_node), eigvals_only=True).max()
+
+    stretched = p.X * np.array([1.002, 1.0, 1.0])
+    rest = top(stretched)
+    centre = stretched.mean(axis=0)
+    turned = (stretched - centre) @ rotation_y(np.pi / 3).T + centre
+    dM_old = added_mass_matrix(eff, p.n_node)
+    reference = top(turned)
+    v = np.random.default_rng(3).standard_normal(p.X.shape)
+    booked = s.follow(turned, v)
+    dM_new = added_mass_matrix(eff, p.n_node)
+    followed = top(turned)
+    print(f"beta {plan.selective[0].max():.3g}: lambda_max stretched {rest:.6e}, turned: reference projectors "
+          f"{reference:.6e} ({reference / rest:.3f}x), following {followed:.6e} ({followed / rest - 1:.2e})")
+    assert followed == pytest.approx(rest, rel=1e-6)
+    assert reference > 4.0 * rest
+    assert np.abs(s.diag.ravel() - (np.repeat(s.m, 3) + np.diag(dM_new))).max() <= 1e-14 * s.diag.max()
+    assert booked == pytest.approx(0.5 * v.ravel() @ (dM_new - dM_old) @ v.ravel(), rel=1e-10)
+
+
+TARGET_FACTOR = 10.0  # selective target of the turned strip over its unscaled step
+
+
+def spun_block(selective: bool) -> dict:
+    """``free_block`` without gravity and with a couple instead of the pair: +-z forces on its end faces (50 N each,
+    6 mm apart) spin it about y; every cycle written."""
+    data = free_block(selective)
+    data["loads"] = [{"type": "nodal_force", "nodes": "xmin", "force": [0, 0, -50], "distribution": "total"},
+                     {"type": "nodal_force", "nodes": "xmax", "force": [0, 0, 50], "distribution": "total"}]
+    data["steps"][0]["duration"] = 1e-4
+    return data
+
+
+def test_spun_block_turns_as_unscaled_and_closes_the_balance(monkeypatch):
+    """Requirement: a body turning through a large angle under selective mass keeps its rotary inertia (the added
+    mass's rigid modes follow it) and its balance; what following changes in the kinetic energy is booked
+    (``mass_corotation_work``) and, for a spin, small (second order in the angle turned per cycle).
+
+    A free steel block 6 x 2 x 2 mm (selective factor 16) spun about y by a couple through about 0.61 rad.
+    Reference: the unscaled run (lumped inertia). Asserted: the angle turned (end faces' mean z) within 0.5 % of the
+    unscaled run's (measured 0.02 %); the balance within 1e-3 of the couple's work at every cycle but the last (the
+    bound of ``test_energy_balance_and_solve_cost``; measured 1.6e-5); the booked work below that bound (measured
+    1.5e-4). With the reference projectors (``follow`` switched off) the block turns through 0.29 rad only (the
+    turned rigid rotation has a deformation share that carries the added mass): more than 2 % off asserted, so the
+    test tells the two apart."""
+    from fdeck.physics.effects.selective_mass import SelectiveMassEffect
+
+    X = compile_deck(Deck.model_validate(spun_block(False))).X
+    lo, hi = X[:, 0] < 1e-9, X[:, 0] > 6 - 1e-9
+
+    def angle(x):
+        return np.arctan2(x[lo, 2].mean() - x[hi, 2].mean(), x[hi, 0].mean() - x[lo, 0].mean())
+
+    res, h = run_history(spun_block(True))
+    ref, _ = run_history(spun_block(False))
+    monkeypatch.setattr(SelectiveMassEffect, "follow", lambda self, x, v: None)
+    old, _ = run_history(spun_block(True))
+    work = h["external_work"][-1]
+    err = np.abs(h["energy_balance_error"][:-1]).max()
+    a, a_ref, a_old = angle(res.final_positions), angle(ref.final_positions), angle(old.final_positions)
+    print(f"angle {a:.4f} rad, unscaled {a_ref:.4f}, reference projectors {a_old:.4f}; balance {err / work:.2e} "
+          f"of the work; booked {h['mass_corotation_work'][-1] / work:.2e} of it")
+    assert abs(a_ref) > 0.5
+    assert a == pytest.approx(a_ref, rel=5e-3)
+    assert err <= 1e-3 * work
+    assert abs(h["mass_corotation_work"][-1]) <= 1e-3 * work
+    assert abs(a_old / a_ref - 1) > 0.02

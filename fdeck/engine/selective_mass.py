@@ -6,10 +6,11 @@ Comm. Numer. Meth. Engng 22 (2006). Per element e with n nodes, lumped element m
 
     dM_e = beta_e (m_e / n) (I - P_e),   P_e the orthogonal projector on the element's 6 rigid modes (3n x 3n)
 
-with the rigid modes (translations c, rotations w x dX_a) taken at the reference positions dX_a = X_a - mean(X).
+with the rigid modes (translations c, rotations w x dX_a) taken at the element's current positions
+dX_a = x_a - mean(x), moved there every cycle (``follow``; below).
 
 * ``dM_e`` vanishes on rigid motion: total mass, momentum (1^T (M + dM) v = sum m v), the response to a uniform
-  acceleration (gravity) and, for small rotations, the rotary inertia are those of the lumped mass M.
+  acceleration (gravity) and the rotary inertia of a rigid turn are those of the lumped mass M.
 * For an element whose lumped masses are equal (m_e / n: every parallelepiped), each deformation mode phi of
   (K_e, M_e) is orthogonal to the rigid modes (they span the null space of the symmetric K_e), so
   (M_e + dM_e) phi = (1 + beta_e) M_e phi: every nonzero element eigenvalue divides by 1 + beta_e and the element
@@ -19,16 +20,25 @@ with the rigid modes (translations c, rotations w x dX_a) taken at the reference
   lumped masses are not equal and that node takes two slots' share of dM_e: the step gain on a prism is below
   sqrt(1 + beta_e) (measured 2.06 against 2.15 at beta = 3.6, 3.7 % short), which the prism's conservative element
   step estimate (about 1.36x below its true step) covers; not corrected.
-* dM is constant, so central differences keep their energy conservation with kinetic energy 1/2 v^T (M + dM) v;
-  1/2 v^T dM_e v = 1/2 beta_e (m_e / n) |(I - P_e) v_e|^2 (booked in the engine's kinetic energy).
+* Kinetic energy 1/2 v^T (M + dM) v, with 1/2 v^T dM_e v = 1/2 beta_e (m_e / n) |(I - P_e) v_e|^2 (booked in the
+  engine's kinetic energy).
 
-Why the reference rigid modes, and what it costs: the current ones would follow the element as it turns, and a
-mass that changes with the configuration is no longer conserved by central differences (and must be rebuilt every
-cycle). With the reference projector, an element turned by an angle phi sees a share of order sin(phi)^2 of its
-rotary inertia scaled by 1 + beta_e. The simpler projector on translations alone (I - 1 1^T / n, frame-indifferent)
-scales the whole rotary inertia of every element, (L_e^2 + h_e^2) / 4 per unit mass with lumped nodes: on a
-slender strip with 5 mm elements and a 5x step that moves the first bending frequency by 1.7 %, the six-mode
-projector by less than 0.01 % (``tests/test_selective_mass.py``).
+Why the current rigid modes. With the reference ones (fdeck until 2026-11-29) a turned or sheared element's
+reference rotations are deformations of its current shape that carry the translational mass m_e / n alone: their
+frequency rises towards sqrt(1 + beta_e) times what the element's step estimate allows, so the assembled critical
+step falls below the scaled one as the blank turns. Measured on the 3 mm tetrahedron (tracking raised beta_e to
+50-240) at t = 0.6013 s: the blank's critical step (Lanczos on the whole mesh, the elements' tangent by central
+differences) 2.89e-5 s against the 3.0e-5 s the run took, the mode on the punch's flank beside the symmetry plane,
+where the energy ran away 150 cycles later; with the projectors at the current positions 3.31e-5 s (README).
+Following costs two things. The mass changes with the configuration, so central differences no longer conserve
+1/2 v^T (M + dM) v by themselves: what following changes at fixed velocities, 1/2 v^T (dM(x_n+1) - dM(x_n)) v at
+the half-step velocities, is booked (``mass_corotation_work``; second order in the angle an element turns per
+cycle, small for a spin: ``tests/test_selective_mass.py``). And one more element pass and one node pass per cycle
+(rigid fit and preconditioner). Translations do not depend on the positions, so the momentum statements above hold
+exactly; the projector on translations alone (I - 1 1^T / n, frame-indifferent, no update) would instead scale the
+whole rotary inertia of every element, (L_e^2 + h_e^2) / 4 per unit mass with lumped nodes: on a slender strip with
+5 mm elements and a 5x step that moves the first bending frequency by 1.7 %, the six-mode projector by less than
+0.01 % (``tests/test_selective_mass.py``).
 
 Per cycle the engine forms r = f_ext - f_int + f_damp, and the constraints fix the accelerations a_c of prescribed
 dofs; the free accelerations solve (M + dM)_ff a_f = r_f - dM_fc a_c (with implicit contact springs K,
@@ -112,7 +122,8 @@ def element_rows(p, conn, X, Xc, Jinv, c, rows):
 
     Seven numbers per element instead of the eight nodal products (24): the product's traffic per element and
     iteration falls from about 780 to about 270 bytes (``_node_added`` finishes it per node). X (n_node, 3) and Xc
-    (n_el, 3) reference positions about the model's centre [mm], Jinv (n_el, 6) [1/mm^2], c (n_el,) [t]."""
+    (n_el, 3) the positions the rigid modes are taken at, about the model's centre [mm] (``follow``), Jinv (n_el, 6)
+    [1/mm^2], c (n_el,) [t]."""
     for e in prange(conn.shape[0]):
         m0, m1, m2, w0, w1, w2 = _rigid_fit(p, conn, X, Xc, Jinv, e)
         ce = c[e]
@@ -361,6 +372,91 @@ def solve(a, r, m, conn, X, Xc, Jinv, c, ptr, elems, free, dinv, tol, max_it, ro
     return it, np.sqrt(rz / ref)
 
 
+@njit_inline
+def _inverse_moment(X, conn, e, out):
+    """out[e] (6,) = the symmetric inverse of sum_a (|dX_a|^2 I - dX_a dX_a^T) of element e at node positions X
+    (dX_a = X_a - mean), by its upper triangle (00, 01, 02, 11, 12, 22); returns the mean (3 scalars) [mm]."""
+    c0 = 0.0
+    c1 = 0.0
+    c2 = 0.0
+    for a in range(NODES):
+        n = conn[e, a]
+        c0 += X[n, 0]
+        c1 += X[n, 1]
+        c2 += X[n, 2]
+    c0 /= NODES
+    c1 /= NODES
+    c2 /= NODES
+    s00 = s01 = s02 = s11 = s12 = s22 = 0.0
+    for a in range(NODES):
+        n = conn[e, a]
+        d0 = X[n, 0] - c0
+        d1 = X[n, 1] - c1
+        d2 = X[n, 2] - c2
+        s00 += d0 * d0
+        s01 += d0 * d1
+        s02 += d0 * d2
+        s11 += d1 * d1
+        s12 += d1 * d2
+        s22 += d2 * d2
+    r2 = s00 + s11 + s22
+    a00, a01, a02, a11, a12, a22 = r2 - s00, -s01, -s02, r2 - s11, -s12, r2 - s22
+    b00 = a11 * a22 - a12 * a12
+    b01 = a02 * a12 - a01 * a22
+    b02 = a01 * a12 - a02 * a11
+    det = a00 * b00 + a01 * b01 + a02 * b02
+    out[e, 0] = b00 / det
+    out[e, 1] = b01 / det
+    out[e, 2] = b02 / det
+    out[e, 3] = (a00 * a22 - a02 * a02) / det
+    out[e, 4] = (a01 * a02 - a00 * a12) / det
+    out[e, 5] = (a00 * a11 - a01 * a01) / det
+    return c0, c1, c2
+
+
+@njit_parallel
+def _follow(v, conn, X, Xc, Jinv, Xn, c, dke):
+    """Move every element's rigid modes from the node positions X to Xn (both (n_node, 3), about the model's
+    centre [mm]): Xc, Jinv rewritten in place; dke (n_el,) = 1/2 c_e (|(I - P_e') v_e|^2 - |(I - P_e) v_e|^2) [mJ],
+    the kinetic energy of the added mass that the move changes at the velocities v (n_node, 3) [mm/s]."""
+    for e in prange(conn.shape[0]):
+        old = _deformation_square(v, conn, X, Xc, Jinv, e)
+        c0, c1, c2 = _inverse_moment(Xn, conn, e, Jinv)
+        Xc[e, 0] = c0
+        Xc[e, 1] = c1
+        Xc[e, 2] = c2
+        dke[e] = 0.5 * c[e] * (_deformation_square(v, conn, Xn, Xc, Jinv, e) - old)
+
+
+@njit_parallel
+def _diagonal(m, X, Xc, Jinv, c, ptr, elems, free, diag, dinv):
+    """diag (n_node, 3) = the diagonal of M + dM and dinv = free / diag (the solve's preconditioner): per node its
+    lumped mass plus, over its slots in slot order, c_e (1 - 1/n - (S_a Jinv_e S_a^T)_jj) with S_a = [X_a - Xc_e]x
+    (the diagonal of I - P_e, as ``projector_diagonal``)."""
+    for i in prange(m.shape[0]):
+        t0 = 0.0
+        t1 = 0.0
+        t2 = 0.0
+        for k in range(ptr[i], ptr[i + 1]):
+            e = elems[k]
+            r0 = X[i, 0] - Xc[e, 0]
+            r1 = X[i, 1] - Xc[e, 1]
+            r2 = X[i, 2] - Xc[e, 2]
+            j00, j01, j02, j11, j12, j22 = Jinv[e, 0], Jinv[e, 1], Jinv[e, 2], Jinv[e, 3], Jinv[e, 4], Jinv[e, 5]
+            # rows of S: (0, -r2, r1), (r2, 0, -r0), (-r1, r0, 0); (S J S^T)_jj = S_j . J S_j
+            q0 = j11 * r2 * r2 - 2.0 * j12 * r2 * r1 + j22 * r1 * r1
+            q1 = j00 * r2 * r2 - 2.0 * j02 * r2 * r0 + j22 * r0 * r0
+            q2 = j00 * r1 * r1 - 2.0 * j01 * r1 * r0 + j11 * r0 * r0
+            t0 += c[e] * (1.0 - 1.0 / NODES - q0)
+            t1 += c[e] * (1.0 - 1.0 / NODES - q1)
+            t2 += c[e] * (1.0 - 1.0 / NODES - q2)
+        diag[i, 0] = m[i] + t0
+        diag[i, 1] = m[i] + t1
+        diag[i, 2] = m[i] + t2
+        for j in range(3):
+            dinv[i, j] = free[i, j] / diag[i, j]
+
+
 def projector_diagonal(dX: np.ndarray, Jinv: np.ndarray) -> np.ndarray:
     """(k, 8, 3): the diagonal of I - P_e at each slot of k elements, from dX (k, 8, 3) [mm] and Jinv (k, 6):
     1 - 1/n from the translations, less S_a Jinv S_a^T from the rotations (S_a = [dX_a]x)."""
@@ -389,15 +485,16 @@ class SelectiveMass:
         self.conn = np.ascontiguousarray(conn, np.int32)
         ptr, slots = node_slots(self.conn, n_node)
         self.ptr, self.elems = ptr, (slots // NODES).astype(np.int32)  # each node's slots as elements, slot order
-        self.X = np.ascontiguousarray(X - 0.5 * (X.min(axis=0) + X.max(axis=0)), float)
+        self.centre = 0.5 * (X.min(axis=0) + X.max(axis=0))
+        self.X = np.ascontiguousarray(X - self.centre, float)
         self.Xc = self.X[self.conn].mean(axis=1)  # (n_el, 3) [mm]
         dX = self.X[self.conn] - self.Xc[:, None, :]
         r2 = np.einsum("eai,eai->e", dX, dX)
         Jinv = np.linalg.inv(r2[:, None, None] * np.eye(3) - np.einsum("eai,eaj->eij", dX, dX))
         Jinv = 0.5 * (Jinv + np.swapaxes(Jinv, 1, 2))  # symmetric to round-off: its upper triangle
         self.Jinv = np.ascontiguousarray(Jinv[:, [0, 0, 0, 1, 1, 2], [0, 1, 2, 1, 2, 2]])  # (n_el, 6) [1/mm^2]
-        for a in (self.conn, self.ptr, self.elems, self.X, self.Xc, self.Jinv):
-            a.flags.writeable = False
+        for a in (self.conn, self.ptr, self.elems, self.centre):
+            a.flags.writeable = False  # X, Xc, Jinv follow the elements (``follow``): saved with checkpoints
         n_el = len(self.conn)
         self.c = np.zeros(n_el)
         self.free = np.ones((n_node, 3))
@@ -418,6 +515,7 @@ class SelectiveMass:
         self._no_springs = (np.zeros(0, np.int64), np.zeros((0, 6)), np.zeros((0, 3)))
         self._vn = np.zeros((n_node, 3))  # scratch of ``add``: mid-cycle velocities of the raised elements' nodes
         self._raise = (np.zeros(n_el), np.zeros(n_el), np.zeros((n_node, 3)))  # scratch of ``conserve``
+        self._moved = (np.zeros((n_node, 3)), np.zeros(n_el))  # scratch of ``follow``
         self.cycles = 0
         self.iterations = 0
         self.max_iterations = 0
@@ -470,6 +568,21 @@ class SelectiveMass:
             return 0.0
         self._vn[touched] = 0.5 * (v_old[touched] + v[touched])  # the only nodes _kinetic_of reads
         return _kinetic_of(self._vn, self.conn, self.X, self.Xc, self.Jinv, dc, idx)
+
+    def follow(self, x: np.ndarray, v: np.ndarray) -> float:
+        """Take every element's rigid modes at the positions x (n_node, 3) [mm] (the projectors P_e follow the
+        elements as they turn and shear; module docstring) and the preconditioner with them. Returns the kinetic
+        energy of the added mass this changes at the velocities v (n_node, 3) [mm/s], 1/2 v^T (dM' - dM) v [mJ]:
+        the engine books it (``mass_corotation_work``), as nothing else supplies it. One pass over the elements and
+        one over the nodes; bitwise the same on any thread count (no reduction across threads but the final sum,
+        which numpy takes serially)."""
+        Xn, dke = self._moved
+        np.subtract(x, self.centre, out=Xn)
+        _follow(v, self.conn, self.X, self.Xc, self.Jinv, Xn, self.c, dke)
+        self._moved = (self.X, dke)
+        self.X = Xn
+        _diagonal(self.m, self.X, self.Xc, self.Jinv, self.c, self.ptr, self.elems, self.free, self.diag, self.dinv)
+        return float(dke.sum())
 
     def conserve(self, idx: np.ndarray, dc: np.ndarray, v: np.ndarray, force=None, dt: float = 0.0) -> float:
         """After ``add`` raised elements idx (k,) by dc (k,) [t]: correct the velocities v (n_node, 3) [mm/s] on the

@@ -490,6 +490,10 @@ def _run(problem, sink: Sink, should_stop, resume) -> Result:
                 forces(t, x, v)
                 t0 = time.perf_counter()
                 check(t)
+                if sms is not None and sms.active:  # the added mass's rigid modes follow the elements
+                    t0 = timer.add("stable step and monitors", t0)
+                    sms.follow(x, v)
+                    t0 = timer.add(sms.name, t0)
                 dt_next = min(stable_dt(plan.dt_safety), STEP_GROWTH * dt_next)
                 if dt_next < collapse * dt_start:
                     raise RunStopped(f"stable time step collapsed to {dt_next:.3g} s, below {collapse:g} x the "

@@ -64,7 +64,7 @@ class SelectiveMassEffect(Effect):
     name = "selective_mass"
     solves_mass = True  # the engine hands it the accelerations of every cycle (``engine.solver``)
     terms = (Term("added_kinetic_energy", VALUE), Term("cg_iterations_mean", VALUE),
-             Term("cg_iterations_max", VALUE), Term("cg_capped_cycles", VALUE))
+             Term("cg_iterations_max", VALUE), Term("cg_capped_cycles", VALUE), Term("mass_corotation_work", WORK))
     tracking_terms = (Term("mass_tracking_work", WORK), Term("tracked_added_mass", VALUE),
                       Term("tracked_elements", VALUE))
 
@@ -88,6 +88,7 @@ class SelectiveMassEffect(Effect):
         self.track_dt = None
         self.ke = 0.0
         self.tracking_work = 0.0  # [mJ] cumulative
+        self.corotation_work = 0.0  # [mJ] cumulative, what ``follow`` changed in the added kinetic energy
         self.tracked_mass = 0.0  # [t] added by tracking, as the plan counts added mass (trace share)
         self.tracked = np.zeros(self.offsets[-1], bool)  # elements given mass by tracking (ever)
         # per group (n_el,): the density tracking added during this step [t/mm^3], carried into a next step that
@@ -134,10 +135,17 @@ class SelectiveMassEffect(Effect):
 
     def term_values(self) -> tuple[float, ...]:
         s = self.solver
-        values = (self.ke, s.iterations / max(s.cycles, 1), float(s.max_iterations), float(s.capped))
+        values = (self.ke, s.iterations / max(s.cycles, 1), float(s.max_iterations), float(s.capped),
+                  self.corotation_work)
         if len(self.terms) > len(values):
             values += (self.tracking_work, 100.0 * self.tracked_mass / self.physical, float(self.tracked.sum()))
         return values
+
+    def follow(self, x: np.ndarray, v: np.ndarray) -> None:
+        """Every cycle after the forces at t_n+1: the added mass's rigid modes move to the positions x (n_node, 3)
+        [mm] (``SelectiveMass.follow``); the kinetic energy that changes at the half-step velocities v (n_node, 3)
+        [mm/s] is booked as ``mass_corotation_work``."""
+        self.corotation_work += self.solver.follow(x, v)
 
     reach = REACH  # (the engine's cap on the target with hinges)
 
