@@ -480,8 +480,9 @@ class SelectiveMass:
         conn = np.concatenate(conns)
         if conn.shape[1] != NODES:
             raise ValueError(f"selective mass is built for {NODES}-node hexahedra, not {conn.shape[1]}-node cells")
-        # constants, read-only (so checkpoints skip them): int32 indices (half the bytes per iteration), reference
-        # positions about the model's centre (the rigid fit's cancellation scales with |X| / |dX|)
+        # constants, read-only (so checkpoints skip them): int32 indices (half the bytes per iteration) and the
+        # model's centre; the positions the rigid modes are taken at (X, Xc, Jinv: ``follow``) are about that centre
+        # (the rigid fit's cancellation scales with |X| / |dX|)
         self.conn = np.ascontiguousarray(conn, np.int32)
         ptr, slots = node_slots(self.conn, n_node)
         self.ptr, self.elems = ptr, (slots // NODES).astype(np.int32)  # each node's slots as elements, slot order

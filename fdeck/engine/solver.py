@@ -487,13 +487,12 @@ def _run(problem, sink: Sink, should_stop, resume) -> Result:
                 # the stable step, not the last one shortened to land on the step's end
                 res.dt_min, res.dt_max = min(res.dt_min, dt_next), max(res.dt_max, dt_next)
                 t0 = timer.add("integrator", t0)
+                if sms is not None and sms.active:  # the added mass's rigid modes follow the elements
+                    sms.follow(x, v)
+                    t0 = timer.add(sms.name, t0)
                 forces(t, x, v)
                 t0 = time.perf_counter()
                 check(t)
-                if sms is not None and sms.active:  # the added mass's rigid modes follow the elements
-                    t0 = timer.add("stable step and monitors", t0)
-                    sms.follow(x, v)
-                    t0 = timer.add(sms.name, t0)
                 dt_next = min(stable_dt(plan.dt_safety), STEP_GROWTH * dt_next)
                 if dt_next < collapse * dt_start:
                     raise RunStopped(f"stable time step collapsed to {dt_next:.3g} s, below {collapse:g} x the "

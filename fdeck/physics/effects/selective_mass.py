@@ -18,8 +18,11 @@ it further (the 3 mm tetrahedron on ``ans_tbar`` blew up at 52.5 mm with kinetic
 together). With ``track_momentum`` the raise instead keeps the momentum of every free dof, (M + dM) v, by one more
 solve (``SelectiveMass.conserve``): the new mass joins at rest relative to its element's rigid motion, the
 deformation modes slow, and the energy change booked is at most zero where no dof is prescribed (a prescribed
-velocity still gives the new mass its own share). That deck still fails with it, earlier and otherwise (README,
-Known limits).
+velocity still gives the new mass its own share). That deck still failed with it, earlier: the cause was the added
+mass's rigid modes taken at the reference positions (``engine.selective_mass``, "Why the current rigid modes").
+
+The rigid modes follow the elements (``follow``, every cycle before the forces): the kinetic energy of the added
+mass that moving them changes at the half-step velocities is booked as ``mass_corotation_work``.
 
 ``ke`` (the ``added_kinetic_energy`` term) is computed on the cycles that write a history row (and the first):
 between rows it holds the last row's value, which nothing reads (``engine.selective_mass.SelectiveMass.book``).
@@ -123,6 +126,9 @@ class SelectiveMassEffect(Effect):
             self.ke = 0.0
             return
         free = free_dofs(constraints, x)
+        # the rigid modes at the step's start positions (a step without selective mass before this one left them
+        # where they were; where they are current already this changes no bit)
+        self.solver.follow(x, np.zeros_like(x))
         # element masses of the translational (base) density rho / (1 + beta): physical, or uniformly scaled
         base = [g.mass(r / (1.0 + b)).sum(axis=1) for g, r, b in zip(self.groups, self.plan.rho, self.plan.selective)]
         self.solver.set_step(self.plan.selective, base, self.plan.mass, free, self.plan.cg)
@@ -142,9 +148,9 @@ class SelectiveMassEffect(Effect):
         return values
 
     def follow(self, x: np.ndarray, v: np.ndarray) -> None:
-        """Every cycle after the forces at t_n+1: the added mass's rigid modes move to the positions x (n_node, 3)
-        [mm] (``SelectiveMass.follow``); the kinetic energy that changes at the half-step velocities v (n_node, 3)
-        [mm/s] is booked as ``mass_corotation_work``."""
+        """Every cycle before the forces at t_n+1 (the damping of the added mass reads dM there): the added mass's
+        rigid modes move to the positions x (n_node, 3) [mm] (``SelectiveMass.follow``); the kinetic energy that
+        changes at the half-step velocities v (n_node, 3) [mm/s] is booked as ``mass_corotation_work``."""
         self.corotation_work += self.solver.follow(x, v)
 
     reach = REACH  # (the engine's cap on the target with hinges)
