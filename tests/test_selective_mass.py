@@ -987,19 +987,20 @@ def test_spun_block_turns_as_unscaled_and_closes_the_balance(monkeypatch):
 
 
 def test_critical_step_script_matches_the_dense_eigenvalue(tmp_path, capsys):
-    """Requirement: ``studies/critical_step.py`` (Lanczos on (K, M + dM) with a matrix-free tangent and the engine's
-    solve as M^-1, at a checkpoint's state) gives the largest eigenvalue of the dense pencil at that state.
+    """Requirement: ``studies/critical_step.py`` (Arnoldi on (M + dM)^-1 K with a matrix-free tangent and the
+    engine's solve as M^-1, at a checkpoint's state) gives the eigenvalue of largest magnitude of the dense
+    (M + dM)^-1 K at that state.
 
     The warp strip pulled with the tracked selective mass (its fibres stiffened, mass added), checkpointed at cycle
-    300 by ``fdeck run``. Reference: the dense pencil on the free dofs at the restored state (K by central
-    differences, h = 1e-6 mm; M + dM from the engine's products) and scipy's ``eigh``. Tolerance 1e-5 relative:
-    Lanczos stops at 1e-6 and the matrix-free product's differences use a step scaled to the vector (the same
-    truncation, other round-off)."""
+    300 by ``fdeck run``. Reference: the dense matrices on the free dofs at the restored state (K by central
+    differences, h = 1e-6 mm, not symmetrised; M + dM from the engine's products) and numpy's ``eigvals``; its top
+    eigenvalue real (imaginary part below 1e-6 of it). Tolerance 1e-3 relative (measured 4.5e-4): Arnoldi stops
+    at a residual of 1e-6, and on a non-normal operator (F-bar's non-symmetric tangent over the non-diagonal mass)
+    the eigenvalue's error is that residual times its condition; the matrix-free differences use a step scaled to
+    the vector (the same truncation, other round-off)."""
     import re
     import sys
     from pathlib import Path
-
-    from scipy.linalg import eigh
 
     from test_cli import fdeck
 
@@ -1014,13 +1015,21 @@ def test_critical_step_script_matches_the_dense_eigenvalue(tmp_path, capsys):
     assert r.returncode == 0, r.stderr
     ckpt = tmp_path / "out" / "checkpoint_0000000300.fdck"
     critical_step.main([str(deck), str(ckpt), "--projectors", "saved", "--modes", "1"])
-    lam = float(re.search(r"lambda ([0-9.e+-]+) 1/s\^2", capsys.readouterr().out).group(1))
+    lam = float(re.search(r"lambda ([0-9.e+-]+) ", capsys.readouterr().out).group(1))
     problem, state = critical_step.restore(deck, ckpt)
     x = state["arrays"]["x"]
     g = problem.groups[0]
     eff = next(e for e in problem.effects if e.name == "selective_mass")
     free = eff.solver.free.ravel() > 0
-    K = central_stiffness(internal_force(g), x, 1e-6)[np.ix_(free, free)]
+    force, cols = internal_force(g), np.flatnonzero(free)
+    K = np.zeros((len(cols), len(cols)))  # not symmetrised: F-bar's tangent is not symmetric
+    for k, j in enumerate(cols):
+        xp, xm = x.copy(), x.copy()
+        xp.flat[j] += 1e-6
+        xm.flat[j] -= 1e-6
+        K[:, k] = (force(xp) - force(xm)).ravel()[cols] / 2e-6
     M = (np.diag(np.repeat(eff.solver.m, 3)) + added_mass_matrix(eff, problem.n_node))[np.ix_(free, free)]
-    dense = eigh(K, M, eigvals_only=True).max()
-    assert lam == pytest.approx(dense, rel=1e-5)
+    ev = np.linalg.eigvals(np.linalg.solve(M, K))
+    dense = ev[np.argmax(np.abs(ev))]
+    assert abs(dense.imag) <= 1e-6 * abs(dense)
+    assert lam == pytest.approx(dense.real, rel=1e-3)

@@ -52,7 +52,8 @@ class MassScaling(Card):
         "and the kinetic energy that removes is booked (`mass_tracking_work` falls). Without it the new mass takes "
         "the current velocities and the kinetic energy it carries is created (booked as positive work): an element "
         "crushed fast gets mass at its crushing speed, which can crush it further. Off by default so runs measured "
-        "before it keep their numbers; it did not save the 3 mm tetrahedron on `ans_tbar` (README, Known limits).")
+        "before it keep their numbers; the 3 mm tetrahedron on `ans_tbar` failed with and without it until the added "
+        "mass's rigid modes followed the elements (README, Forming).")
     cg_tolerance: float = Field(
         CG_TOLERANCE, gt=0, lt=1, description="Selective scaling: the conjugate-gradient solve stops when the "
         "residual's norm (weighted by the inverse diagonal) falls below this fraction of the right-hand side's (the "
