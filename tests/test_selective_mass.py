@@ -879,10 +879,7 @@ def rotation(axis: np.ndarray, angle: float) -> np.ndarray:
 def test_turned_blank_keeps_its_critical_step_with_the_rigid_modes_following():
     """Requirement: the critical step of the selectively scaled mesh does not change when the mesh turns as a rigid
     body (objectivity of the pencil (K, M + dM)), because ``follow`` takes each element's rigid modes at its
-    current positions; with the reference ones it falls. This was the 3 mm tetrahedron's runaway: at t = 0.6013 s
-    the assembled critical step (Lanczos on the whole blank) was 2.89e-5 s against the 3.0e-5 s run, its mode on the
-    flank beside the symmetry plane where the energy later grew, and 3.31e-5 s with the projectors at the current
-    positions (2026-11-29, README).
+    current positions; with the reference ones it falls (the 3 mm tetrahedron's runaway, README *Forming*).
 
     The 3WEAVE warp strip (8 x 2 x 2 F-bar hexahedra, selective target TARGET_FACTOR x its step: beta up to 105),
     stretched 0.2 % along the warp (off the fibre law's switch at rest, where central differences average two one-sided

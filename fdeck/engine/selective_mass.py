@@ -26,10 +26,11 @@ dX_a = x_a - mean(x), moved there every cycle (``follow``; below).
 Why the current rigid modes. With the reference ones (fdeck until 2026-11-29) a turned or sheared element's
 reference rotations are deformations of its current shape that carry the translational mass m_e / n alone: their
 frequency rises towards sqrt(1 + beta_e) times what the element's step estimate allows, so the assembled critical
-step falls below the scaled one as the blank turns. Measured on the 3 mm tetrahedron (tracking raised beta_e to
-50-240) at t = 0.6013 s: the blank's critical step (Lanczos on the whole mesh, the elements' tangent by central
-differences) 2.89e-5 s against the 3.0e-5 s the run took, the mode on the punch's flank beside the symmetry plane,
-where the energy ran away 150 cycles later; with the projectors at the current positions 3.31e-5 s (README).
+step falls below the scaled one as the blank turns: the 3 mm tetrahedron (tracking raised beta_e to 100-230 on
+its flank) ran away there at 47-52 mm of stroke, and with the rigid modes following it forms to the end (README,
+*Forming*; ``tests/test_selective_mass.py``: a turned strip's top eigenvalue 6.8x with the reference projectors,
+unchanged to 2e-10 with the current ones). ``studies/critical_step.py`` measures a run's critical step at a
+checkpoint.
 Following costs two things. The mass changes with the configuration, so central differences no longer conserve
 1/2 v^T (M + dM) v by themselves: what following changes at fixed velocities, 1/2 v^T (dM(x_n+1) - dM(x_n)) v at
 the half-step velocities, is booked (``mass_corotation_work``; second order in the angle an element turns per
