@@ -50,7 +50,8 @@ def _passes_and_balances(run):
     """The run completed with every check passing (exit 0), and from the history columns, independent of the
     checks' code: kinetic + internal (which holds the contact energy) + damping + friction dissipation - external
     work - work of every tool on the blank (punch, die, holder) - the contacts' area work (the normal force law's
-    own, ``physics/effects/contact.py``) stays below 1 % of the largest energy, and matches
+    own, ``physics/effects/contact.py``) - what the selective mass's following rigid modes changed in the kinetic
+    energy (``mass_corotation_work``, where selective mass is on) stays below 1 % of the largest energy, and matches
     the solver's own error column to 1e-6 of that scale (the CSV's rounding)."""
     r, h, out = run
     summary = json.loads((out / "summary.json").read_text())
@@ -60,7 +61,8 @@ def _passes_and_balances(run):
     tools = [k for k in h if k.startswith("tool_work_")]
     assert sorted(tools) == ["tool_work_die", "tool_work_holder", "tool_work_punch"]
     bal = (h["kinetic_energy"] + h["internal_energy"] + h["damping_energy"] + h["friction_dissipation"]
-           - h["external_work"] - sum(h[k] for k in tools) - h["contact_area_work"])
+           - h["external_work"] - sum(h[k] for k in tools) - h["contact_area_work"]
+           - h.get("mass_corotation_work", 0.0))
     scale = max(np.abs(h["kinetic_energy"]).max(), np.abs(h["internal_energy"]).max())
     assert np.abs(bal).max() / scale < 0.01
     assert np.abs(bal - h["energy_balance_error"]).max() / scale < 1e-6
