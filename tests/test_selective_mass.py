@@ -989,7 +989,7 @@ def test_critical_step_script_matches_the_dense_eigenvalue(tmp_path, capsys):
     (M + dM)^-1 K at that state.
 
     The warp strip pulled with the tracked selective mass (its fibres stiffened, mass added), checkpointed at cycle
-    300 by ``fdeck run``. Reference: the dense matrices on the free dofs at the restored state (K by central
+    300 by the run's own writer (``fdeck run`` in-process). Reference: the dense matrices on the free dofs at the restored state (K by central
     differences, h = 1e-6 mm, not symmetrised; M + dM from the engine's products) and numpy's ``eigvals``; its top
     eigenvalue real (imaginary part below 1e-6 of it). Tolerance 1e-3 relative (measured 4.5e-4): Arnoldi stops
     at a residual of 1e-6, and on a non-normal operator (F-bar's non-symmetric tangent over the non-diagonal mass)
@@ -999,7 +999,8 @@ def test_critical_step_script_matches_the_dense_eigenvalue(tmp_path, capsys):
     import sys
     from pathlib import Path
 
-    from test_cli import fdeck
+    from fdeck.deck.read import read_deck
+    from fdeck.run import execute
 
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "studies"))
     import critical_step
@@ -1008,8 +1009,8 @@ def test_critical_step_script_matches_the_dense_eigenvalue(tmp_path, capsys):
     data["output"] = {"frames": 1, "history_points": 10, "checkpoint": {"every": 300, "keep": 2}}
     deck = tmp_path / "strip.yaml"
     deck.write_text(yaml.safe_dump(data))
-    r = fdeck("run", deck, "-o", tmp_path / "out")
-    assert r.returncode == 0, r.stderr
+    code, _ = execute(read_deck(deck)[0], tmp_path, tmp_path / "out", "strip", str(deck), echo=lambda *a: None)
+    assert code == 0
     ckpt = tmp_path / "out" / "checkpoint_0000000300.fdck"
     critical_step.main([str(deck), str(ckpt), "--projectors", "saved", "--modes", "1"])
     lam = float(re.search(r"lambda ([0-9.e+-]+) ", capsys.readouterr().out).group(1))
