@@ -489,16 +489,14 @@ class SelectiveMass:
         self.ptr, self.elems = ptr, (slots // NODES).astype(np.int32)  # each node's slots as elements, slot order
         self.centre = 0.5 * (X.min(axis=0) + X.max(axis=0))
         self.X = np.ascontiguousarray(X - self.centre, float)
-        self.Xc = self.X[self.conn].mean(axis=1)  # (n_el, 3) [mm]
-        dX = self.X[self.conn] - self.Xc[:, None, :]
-        r2 = np.einsum("eai,eai->e", dX, dX)
-        Jinv = np.linalg.inv(r2[:, None, None] * np.eye(3) - np.einsum("eai,eaj->eij", dX, dX))
-        Jinv = 0.5 * (Jinv + np.swapaxes(Jinv, 1, 2))  # symmetric to round-off: its upper triangle
-        self.Jinv = np.ascontiguousarray(Jinv[:, [0, 0, 0, 1, 1, 2], [0, 1, 2, 1, 2, 2]])  # (n_el, 6) [1/mm^2]
+        n_el = len(self.conn)
+        self.Xc = np.zeros((n_el, 3))  # element means of X [mm]
+        self.Jinv = np.zeros((n_el, 6))  # inverse moments of the element nodes about them [1/mm^2]
+        self.c = np.zeros(n_el)
+        # the rigid fit at the reference positions: follow's kernel from X to X at rest (no energy to measure)
+        _follow(np.zeros_like(self.X), self.conn, self.X, self.Xc, self.Jinv, self.X, self.c, np.zeros(n_el))
         for a in (self.conn, self.ptr, self.elems, self.centre):
             a.flags.writeable = False  # X, Xc, Jinv follow the elements (``follow``): saved with checkpoints
-        n_el = len(self.conn)
-        self.c = np.zeros(n_el)
         self.free = np.ones((n_node, 3))
         self.dinv = np.ones((n_node, 3))
         self.diag = np.ones((n_node, 3))
@@ -525,8 +523,8 @@ class SelectiveMass:
         self.last_residual = 0.0
         self.ke_last = 0.0  # added kinetic energy at the last cycle that computed it [mJ]
 
-    def _complement_diagonal(self, idx=slice(None)) -> np.ndarray:
-        """(k, 8, 3) diagonal of I - P_e at the slots of the elements idx (all by default)."""
+    def _complement_diagonal(self, idx: np.ndarray) -> np.ndarray:
+        """(k, 8, 3) diagonal of I - P_e at the slots of the elements idx (k,) (``add``'s O(k) update)."""
         conn = self.conn[idx]
         return projector_diagonal(self.X[conn] - self.Xc[idx][:, None, :], self.Jinv[idx])
 
@@ -550,9 +548,7 @@ class SelectiveMass:
         self.c[:] = np.concatenate([b * me / n for b, me in zip(betas, element_mass)])
         self.m = np.ascontiguousarray(m, float)
         self.free = np.ascontiguousarray(free, float)
-        self.diag = np.repeat(self.m[:, None], 3, axis=1)  # the preconditioner: diagonal of M + dM
-        np.add.at(self.diag, self.conn.ravel(), (self.c[:, None, None] * self._complement_diagonal()).reshape(-1, 3))
-        self.dinv = self.free / self.diag
+        self._precondition()
         self.tol, self.max_it = float(cg[0]), int(cg[1])
 
     def add(self, idx: np.ndarray, dc: np.ndarray, v=None, v_old=None) -> float:
@@ -571,19 +567,26 @@ class SelectiveMass:
         self._vn[touched] = 0.5 * (v_old[touched] + v[touched])  # the only nodes _kinetic_of reads
         return _kinetic_of(self._vn, self.conn, self.X, self.Xc, self.Jinv, dc, idx)
 
-    def follow(self, x: np.ndarray, v: np.ndarray) -> float:
+    def _precondition(self) -> None:
+        """diag (n_node, 3) = the diagonal of M + dM, dinv = free / diag: the solve's preconditioner, rebuilt in
+        place from the current c, m, free and rigid modes."""
+        _diagonal(self.m, self.X, self.Xc, self.Jinv, self.c, self.ptr, self.elems, self.free, self.diag, self.dinv)
+
+    def follow(self, x: np.ndarray, v: np.ndarray, precondition: bool = True) -> float:
         """Take every element's rigid modes at the positions x (n_node, 3) [mm] (the projectors P_e follow the
         elements as they turn and shear; module docstring) and the preconditioner with them. Returns the kinetic
         energy of the added mass this changes at the velocities v (n_node, 3) [mm/s], 1/2 v^T (dM' - dM) v [mJ]:
         the engine books it (``mass_corotation_work``), as nothing else supplies it. One pass over the elements and
         one over the nodes; bitwise the same on any thread count (no reduction across threads but the final sum,
-        which numpy takes serially)."""
+        which numpy takes serially). ``precondition=False`` leaves the preconditioner to the caller (a step's start:
+        ``set_step`` rebuilds it)."""
         Xn, dke = self._moved
         np.subtract(x, self.centre, out=Xn)
         _follow(v, self.conn, self.X, self.Xc, self.Jinv, Xn, self.c, dke)
         self._moved = (self.X, dke)
         self.X = Xn
-        _diagonal(self.m, self.X, self.Xc, self.Jinv, self.c, self.ptr, self.elems, self.free, self.diag, self.dinv)
+        if precondition:
+            self._precondition()
         return float(dke.sum())
 
     def conserve(self, idx: np.ndarray, dc: np.ndarray, v: np.ndarray, force=None, dt: float = 0.0) -> float:

@@ -127,8 +127,8 @@ class SelectiveMassEffect(Effect):
             return
         free = free_dofs(constraints, x)
         # the rigid modes at the step's start positions (a step without selective mass before this one left them
-        # where they were; where they are current already this changes no bit)
-        self.solver.follow(x, np.zeros_like(x))
+        # where they were; where they are current already this changes no bit); set_step rebuilds the preconditioner
+        self.solver.follow(x, np.zeros_like(x), precondition=False)
         # element masses of the translational (base) density rho / (1 + beta): physical, or uniformly scaled
         base = [g.mass(r / (1.0 + b)).sum(axis=1) for g, r, b in zip(self.groups, self.plan.rho, self.plan.selective)]
         self.solver.set_step(self.plan.selective, base, self.plan.mass, free, self.plan.cg)
