@@ -52,8 +52,9 @@ class ElementGroup(Protocol):
     def worst_jacobian(self) -> tuple[float, int]:
         """(smallest det F over the group's points, its element id)."""
 
-    def cell_fields(self, idx=None) -> dict[str, np.ndarray]:
-        """Per-element output fields for all elements or the local indices idx."""
+    def cell_fields(self, idx=None, names=None) -> dict[str, np.ndarray]:
+        """Per-element output fields for all elements or the local indices idx; with ``names`` (field names) a
+        group may leave out the costly fields not named (the cheap ones may come along)."""
 
 
 @runtime_checkable

@@ -8,7 +8,8 @@ per call; on the 24 000-hexahedron tetrahedron a `max_shear_angle` history measu
 taking ``diagnose`` as a first-class function argument (the first version) keys its cache index on the
 dispatcher's type, and a process that loaded an index another had just written could not write it back
 ("underlying object has vanished", seen on a cold cache in the test suite); compiling the loop costs a fraction of
-a second, once, in the processes that write element output.
+a second, once, in the processes that write element output. Parallel over elements: at 500 history rows the
+`max_shear_angle` measure was still 5 % of the 5 mm `ans_tbar` tetrahedron's run (README, *Forming*).
 """
 
 from __future__ import annotations
@@ -27,9 +28,9 @@ def _loop(diagnose):
     (m, n_params); src, w (n, k); vals (n, n_diagnostics)."""
     loop = _LOOPS.get(diagnose)
     if loop is None:
-        @numba.njit(**{**FLAGS, "cache": False})
+        @numba.njit(**{**FLAGS, "cache": False, "parallel": True})
         def loop(F, frame, params, src, w, vals):
-            for e in range(F.shape[0]):
+            for e in numba.prange(F.shape[0]):  # each element its own row of vals: same bits on any thread count
                 for q in range(F.shape[1]):
                     d = diagnose(F[e, q], frame[src[e, q]], params[src[e, q]])
                     for i in range(vals.shape[1]):

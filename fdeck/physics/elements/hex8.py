@@ -568,28 +568,31 @@ class Hex8Group:
         return m
 
     # -- output ------------------------------------------------------------------------------------
-    def cell_fields(self, idx=None) -> dict[str, np.ndarray]:
+    def cell_fields(self, idx=None, names=None) -> dict[str, np.ndarray]:
         """Per-element output averaged over points, for all elements or the local indices ``idx``:
         Cauchy stress (n, 6) XX YY ZZ XY YZ XZ [MPa], strain-energy density [MPa], J, the formulation's
         diagnostics (J_bar, hourglass energy density) and the material's (see its ``diagnostics``), all taken at the
-        deformation gradient the material sees (``F_material`` of a subclass, F-bar's Fbar, else F)."""
+        deformation gradient the material sees (``F_material`` of a subclass, F-bar's Fbar, else F). ``names``
+        (a collection of field names): compute only those where that saves work (the stress, the material's
+        diagnostics); the history's measures ask for one field every row, and the stress was 9/10 of their time."""
         idx = np.arange(len(self.conn)) if idx is None else np.asarray(idx)
         F = getattr(self, "F_material", self.Fbar if self.formulation == "fbar" else self.F)[idx]
-        P, w = self.P[idx], self.w[idx]
-        sigma = np.einsum("eqij,eqkj->eqik", P, F) / np.linalg.det(F)[..., None, None]
+        w = self.w[idx]
         wn = w / w.sum(axis=1, keepdims=True)
-        s = np.einsum("eq,eqij->eij", wn, sigma)
-        out = {
-            "stress": np.stack([s[:, 0, 0], s[:, 1, 1], s[:, 2, 2], s[:, 0, 1], s[:, 1, 2], s[:, 0, 2]], axis=1),
-            "strain_energy_density": np.einsum("eq,eq->e", wn, self.psi[idx]),
-            "J": np.einsum("eq,eq->e", wn, self.J[idx]),
-        }
+        out = {}
+        if names is None or "stress" in names:
+            sigma = np.einsum("eqij,eqkj->eqik", self.P[idx], F) / np.linalg.det(F)[..., None, None]
+            s = np.einsum("eq,eqij->eij", wn, sigma)
+            out["stress"] = np.stack([s[:, 0, 0], s[:, 1, 1], s[:, 2, 2], s[:, 0, 1], s[:, 1, 2], s[:, 0, 2]], axis=1)
+        out["strain_energy_density"] = np.einsum("eq,eq->e", wn, self.psi[idx])
+        out["J"] = np.einsum("eq,eq->e", wn, self.J[idx])
         if self.formulation == "fbar":
             out["J_bar"] = self.Jbar[idx]
         if self.has_hourglass:
             out["hourglass_energy_density"] = self.e_hg[idx] / self.V0[idx]
-        src = np.broadcast_to(idx[:, None], wn.shape)  # every point reads its element's frame and law
-        out.update(diagnostics.averaged(self.material, F, self.frame, self.params, src, wn))
+        if names is None or not set(names).isdisjoint(self.material.diagnostics):
+            src = np.broadcast_to(idx[:, None], wn.shape)  # every point reads its element's frame and law
+            out.update(diagnostics.averaged(self.material, F, self.frame, self.params, src, wn))
         return out
 
 

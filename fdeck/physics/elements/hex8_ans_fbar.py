@@ -170,9 +170,9 @@ class Hex8AnsFbarGroup(Hex8AnsGroup):
                    a["Gq"], a["Gs"], self.F0, self.gs, self.fe)
         add_mean_dilatation(self.F, self.Jbar, self.pbar, self.dN, self.w, self.fe)
 
-    def cell_fields(self, idx=None) -> dict[str, np.ndarray]:
+    def cell_fields(self, idx=None, names=None) -> dict[str, np.ndarray]:
         """As ``Hex8Group.cell_fields`` (at F^), plus ``J_bar`` (n,) the elements' mean Jacobian."""
-        out = super().cell_fields(idx)
+        out = super().cell_fields(idx, names)
         out["J_bar"] = self.Jbar[np.arange(len(self.conn)) if idx is None else np.asarray(idx)]
         return out
 

@@ -884,31 +884,32 @@ class ShellGroup:
         return out
 
     # -- output ----------------------------------------------------------------------------------------
-    def cell_fields(self, idx=None) -> dict[str, np.ndarray]:
+    def cell_fields(self, idx=None, names=None) -> dict[str, np.ndarray]:
         """Per-element output averaged over points: Cauchy stress (n, 6) [MPa], strain-energy density [MPa], area
-        ratio J, bending and transverse-shear energy densities [MPa], and the law's diagnostics."""
+        ratio J, bending and transverse-shear energy densities [MPa], and the law's diagnostics. ``names``: as
+        ``Hex8Group.cell_fields`` (the stress and the diagnostics only where asked for)."""
         idx = np.arange(len(self.conn)) if idx is None else np.asarray(idx)
-        F, P, w = self.F[idx], self.P[idx], self.w[idx]
-        detF = np.linalg.det(F)
-        sigma = np.einsum("eglij,eglkj->eglik", P, F) / detF[..., None, None]
+        F, w = self.F[idx], self.w[idx]
         wn = w / w.sum(axis=(1, 2), keepdims=True)
-        s = np.einsum("egl,eglij->eij", wn, sigma)
         V0 = self.V0[idx]
-        out = {
-            "stress": np.stack([s[:, 0, 0], s[:, 1, 1], s[:, 2, 2], s[:, 0, 1], s[:, 1, 2], s[:, 0, 2]], axis=1),
-            "strain_energy_density": (np.einsum("egl,egl->e", w, self.psi[idx]) + self.e_b[idx] + self.e_s[idx]) / V0,
-            "J": self.J[idx].mean(axis=1),
-        }
+        out = {}
+        if names is None or "stress" in names:
+            sigma = np.einsum("eglij,eglkj->eglik", self.P[idx], F) / np.linalg.det(F)[..., None, None]
+            s = np.einsum("egl,eglij->eij", wn, sigma)
+            out["stress"] = np.stack([s[:, 0, 0], s[:, 1, 1], s[:, 2, 2], s[:, 0, 1], s[:, 1, 2], s[:, 0, 2]], axis=1)
+        out["strain_energy_density"] = (np.einsum("egl,egl->e", w, self.psi[idx]) + self.e_b[idx] + self.e_s[idx]) / V0
+        out["J"] = self.J[idx].mean(axis=1)
         parts = [t.name for t in self.terms]
         if "bending_energy" in parts:
             out["bending_energy_density"] = self.e_b[idx] / V0
         if "transverse_shear_energy" in parts:
             out["transverse_shear_energy_density"] = self.e_s[idx] / V0
-        n, n_z = len(idx), len(self.z)
-        # point (corner g, level l) of element e reads the frame and law of its corner, row 4 e + g
-        src = np.repeat(4 * np.asarray(idx)[:, None] + np.arange(4)[None, :], n_z, axis=1)
-        out.update(diagnostics.averaged(self.material, F.reshape(n, 4 * n_z, 3, 3), self.frame, self.params, src,
-                                        wn.reshape(n, 4 * n_z)))
+        if names is None or not set(names).isdisjoint(self.material.diagnostics):
+            n, n_z = len(idx), len(self.z)
+            # point (corner g, level l) of element e reads the frame and law of its corner, row 4 e + g
+            src = np.repeat(4 * np.asarray(idx)[:, None] + np.arange(4)[None, :], n_z, axis=1)
+            out.update(diagnostics.averaged(self.material, F.reshape(n, 4 * n_z, 3, 3), self.frame, self.params, src,
+                                            wn.reshape(n, 4 * n_z)))
         return out
 
 

@@ -21,7 +21,7 @@ class Measure:
     def evaluate(self, x, v):
         vals, wts = [], []
         for g, idx, w in self.parts:
-            vals.append(g.cell_fields(idx)[self.card.field])
+            vals.append(g.cell_fields(idx, (self.card.field,))[self.card.field])
             wts.append(w)
         vals, wts = np.concatenate(vals), np.concatenate(wts)
         if self.card.reduce == "mean":

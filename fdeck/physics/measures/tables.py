@@ -66,7 +66,7 @@ class PathTable:
                 continue
             local, inverse = np.unique(where.element[sel], return_inverse=True)
             element[sel] = self.offset[g.cell_type] + g.element_index[local][inverse] + 1
-            fields = g.cell_fields(local)
+            fields = g.cell_fields(local, ("shear_angle",))
             if "shear_angle" in fields:
                 gamma[sel] = fields["shear_angle"][inverse]
         return gamma, element
