@@ -9,7 +9,8 @@ taking ``diagnose`` as a first-class function argument (the first version) keys 
 dispatcher's type, and a process that loaded an index another had just written could not write it back
 ("underlying object has vanished", seen on a cold cache in the test suite); compiling the loop costs a fraction of
 a second, once, in the processes that write element output. Parallel over elements: at 500 history rows the
-`max_shear_angle` measure was still 5 % of the 5 mm `ans_tbar` tetrahedron's run (README, *Forming*).
+`max_shear_angle` measure was 5 % of the 5 mm `ans_tbar` tetrahedron's run (README, *Forming*); without the stress
+(``cell_fields``' ``names``) and in parallel, 0.020 against 0.113 s per row on 2 threads.
 """
 
 from __future__ import annotations

@@ -574,7 +574,8 @@ class Hex8Group:
         diagnostics (J_bar, hourglass energy density) and the material's (see its ``diagnostics``), all taken at the
         deformation gradient the material sees (``F_material`` of a subclass, F-bar's Fbar, else F). ``names``
         (a collection of field names): compute only those where that saves work (the stress, the material's
-        diagnostics); the history's measures ask for one field every row, and the stress was 9/10 of their time."""
+        diagnostics); the history's measures ask for one field every row, and the stress was 3/5 of their time
+        (`max_shear_angle` on the 24 000-hexahedron tetrahedron, 0.113 -> 0.044 s per row)."""
         idx = np.arange(len(self.conn)) if idx is None else np.asarray(idx)
         F = getattr(self, "F_material", self.Fbar if self.formulation == "fbar" else self.F)[idx]
         w = self.w[idx]
