@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import fdeck.physics  # noqa: F401  (registers plug-ins)
-from fdeck.physics.elements.diagnostics import averaged
+from fdeck.physics.elements.diagnostics import _loop, averaged
 from fdeck.registry import CARDS, MATERIALS
 
 
@@ -24,7 +24,8 @@ def test_averaged_diagnostics_equal_the_point_by_point_mean(kind, card, k):
     """Requirement: for n elements of k points (8: a hexahedron; 12: a shell's 4 corners x 3 levels) with random
     deformations (F = I + 0.05 noise), each point reading a random row of the frames and laws (as a shell's
     corners or a hexahedron's elements do), random weights summing to 1, every diagnostic equals sum_q w_q diagnose(F_q, frame_q, params_q) evaluated in Python in the same order: bitwise
-    (the same floating operations in the same order; no fastmath contraction)."""
+    (the same floating operations in the same order; no fastmath contraction), by the serial loop that small
+    models use and by the parallel one of large models."""
     rng = np.random.default_rng(7)
     material = MATERIALS[kind]
     p = material.pack(CARDS["material"][kind].card(**card))
@@ -44,3 +45,7 @@ def test_averaged_diagnostics_equal_the_point_by_point_mean(kind, card, k):
     for i, name in enumerate(material.diagnostics):
         assert np.array_equal(out[name], expected[:, i]), name
     assert np.abs(out["shear_angle"]).max() > 0.1  # the deformations shear: the comparison is not of zeros
+    # the parallel loop (models of PARALLEL_POINTS points or more) gives the same bits: one row per element
+    par = np.zeros_like(expected)
+    _loop(material.diagnose, True)(F, frame, params, np.ascontiguousarray(src, np.int64), w, par)
+    assert np.array_equal(par, expected)
