@@ -21,8 +21,9 @@ frequencies, so on decks with such effects the critical step printed is an upper
 prints K's asymmetry |p^T K q - q^T K p| / sqrt(|p^T K p| |q^T K q|) for two random vectors and how many of the
 conjugate-gradient solves reached their cap.
 
-Cost: each Lanczos iteration is two force evaluations and one solve; 1-5 min on the 66 400-element tetrahedron on
-2 threads. Needs selective mass in the checkpoint's step (for a lumped mass the element estimate is a bound).
+Cost: each Arnoldi iteration is two force evaluations and one solve; on the 66 400-element tetrahedron on
+2 threads 55-452 solves, about 4-8 min with compiling (measured 2026-11-29/30). Needs selective mass in the
+checkpoint's step (for a lumped mass the element estimate is a bound).
 """
 
 from __future__ import annotations
