@@ -17,11 +17,16 @@ reused by later invocations, put first on PYTHONPATH; its commit is recorded): f
 whole source tree, so uncommitted edits (other work in the same tree) would otherwise recompile the kernels inside
 the timed cycles. Before any timing, each deck runs 3 cycles (a variant with `max_cycles: 3`) to fill that
 snapshot's cache. `FDECK_BENCH_COMMIT=<commit>` measures that commit instead of HEAD (to add rows to a table
-measured at an earlier commit while others commit). Every row records the load average before and after its run: on a shared machine the figures are
-only as steady as the load.
+measured at an earlier commit while others commit). Every row records the load average before and after its run:
+on a shared machine the figures are only as steady as the load.
+
+A deck run to the end replaces its partial row with the measured whole run (`--completed DECK RUN_DIR COMMIT DATE`:
+the run's summary.json, its cycles, wall, µs per element-cycle, contact share and checks; no extrapolation). The
+contact share counts the `contact:*`, `tool:*` and implicit `contact springs` rows of the timing table.
 
     python benchmarks/forming_cost.py                    # all eight decks, 90 s of cycling each, 2 threads
     python benchmarks/forming_cost.py --max-wall 180 --decks square_tube_sm square_tube_ts
+    python benchmarks/forming_cost.py --completed tetrahedron_5mm RUN_DIR COMMIT 2026-11-30   # a whole run
     python benchmarks/forming_cost.py --report           # markdown table of benchmarks/forming_cost.json
 
 Writes benchmarks/forming_cost.json (rows of decks measured earlier are kept unless measured again).
@@ -44,6 +49,7 @@ ROOT = HERE.parent
 DECKS = ("tetrahedron_5mm", "tetrahedron_3mm", "double_dome_090_5mm", "double_dome_090_3mm",
          "double_dome_45_4p24mm", "double_dome_45_2p12mm", "square_tube_sm", "square_tube_ts")
 OUT = HERE / "forming_cost.json"
+CONTACT_ROWS = ("contact:", "tool:", "contact springs")  # timing-table rows of contact (implicit springs' own row)
 
 
 def load() -> str:
@@ -135,7 +141,7 @@ def partial_run(deck: Path, out: Path, max_wall: float, env: dict) -> dict:
     per = s.get("time_per_effect", {})
     total = sum(per.values()) or 1.0
     total -= per.get("output", 0.0) + per.get("measures", 0.0)  # share of the per-cycle work (events excluded)
-    contact = sum(v for k, v in per.items() if k.startswith(("contact:", "tool:")))
+    contact = sum(v for k, v in per.items() if k.startswith(CONTACT_ROWS))
     return {"ok": s["cycles"] > 0 and s["status"] != "failed", "status": s["status"], "exit_code": proc.returncode,
             "cycles": s["cycles"], "simulated_time": s["simulated_time"], "loop_wall": s["wall_time"],
             "process_wall": wall, "setup_wall": wall - s["wall_time"], "compile_time": s["compile_time"],
@@ -199,6 +205,28 @@ def measure(decks, max_wall: float, threads: int) -> list[dict]:
     return rows
 
 
+def completed(name: str, run_dir: Path, commit: str, date: str, threads: int) -> dict:
+    """A row from a run of the deck taken to the end (`fdeck run DECK -o RUN_DIR`, its summary.json): measured, not
+    extrapolated. The run records neither its commit nor its date, so both are given; `fdeck info`'s cycle count
+    comes from the deck as it is now (the same deck the run ran, or the row is mislabelled)."""
+    s = json.loads((run_dir / "summary.json").read_text())
+    if s["status"] != "completed" or s["cycles_this_run"] != s["cycles"]:
+        raise SystemExit(f"{run_dir}: not one run from start to end (status {s['status']}, {s['cycles_this_run']} "
+                         f"of {s['cycles']} cycles in its last process)")
+    per = s["time_per_effect"]
+    events = per.get("output", 0.0) + per.get("measures", 0.0)
+    total = sum(per.values()) - events
+    info = fdeck_info(ROOT / "decks" / "forming" / f"{name}.yaml", dict(os.environ))
+    return {"deck": name, "commit": commit, "date": date, "threads": threads, **info,
+            "completed": {"cycles": s["cycles"], "loop_wall": s["wall_time"], "compile_time": s["compile_time"],
+                          "us_per_element_cycle": s["us_per_element_cycle"],
+                          "us_per_element_cycle_without_events": 1e6 * (s["wall_time"] - events) / s["cycles"]
+                          / s["elements"],
+                          "contact_share": sum(v for k, v in per.items() if k.startswith(CONTACT_ROWS)) / total,
+                          "dt_min": s["dt_min"], "dt_max": s["dt_max"], "time_per_effect": per,
+                          "checks": {c["name"]: c["passed"] for c in s["checks"]}}}
+
+
 def _h(seconds: float | None) -> str:
     if seconds is None:
         return "–"
@@ -211,13 +239,24 @@ def report(result: dict) -> str:
              "**extrapolated** wall, 2 cores (info / mean step) | load (1-min) |",
              "|---|---|---|---|---|---|---|---|---|---|"]
     for r in result["rows"]:
+        if "completed" in r:
+            c = r["completed"]
+            checks = ", ".join(f"{k} {'passes' if v else 'FAILS'}" for k, v in c["checks"].items())
+            lines.append(
+                f"| {r['deck']} | {r['elements']:,} | **run to the end**: {c['cycles']:,} (100 %) in "
+                f"{c['loop_wall']:.0f} s ({r['commit'][:7]}, {r['date']}; {checks}) | {c['us_per_element_cycle']:.2f}"
+                f" / {c['us_per_element_cycle_without_events']:.2f} | {100 * c['contact_share']:.0f} % | "
+                f"{c['dt_min']:.3g}..{c['dt_max']:.3g} | – | {r['expected_cycles']:,} | **measured** "
+                f"{_h(c['loop_wall'] + c['compile_time'])} | – |")
+            continue
         run, ex = r["run"], r.get("extrapolated")
         if not run.get("ok"):
             why = (f"no cycle within --max-wall {r['max_wall']:g} s (it includes the first frame)"
                    if run.get("cycles") == 0 else f"failed (exit {run.get('exit_code')})")
             rss = f"{run['peak_rss_mib']:.0f} MiB" if run.get("peak_rss_mib") else "–"
-            lines.append(f"| {r['deck']} | {r['elements']:,} | {why} | – | – | – | {rss} | {r['expected_cycles']:,} | "
-                         f"– | {run['load_before'].split()[0]}–{run['load_after'].split()[0]} |")
+            loads = f"{run['load_before'].split()[0]}–{run['load_after'].split()[0]}"
+            lines.append(f"| {r['deck']} | {r['elements']:,} | {why} | – | – | – | {rss} | "
+                         f"{r['expected_cycles']:,} | – | {loads} |")
             continue
         rss = f"{run['peak_rss_mib']:.0f} MiB" if run.get("peak_rss_mib") else "–"
         lines.append(
@@ -239,14 +278,29 @@ def main(argv=None) -> int:
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--report", action="store_true")
     ap.add_argument("--recompute", action="store_true", help="redo the extrapolation of the stored rows")
+    ap.add_argument("--completed", nargs=4, action="append", metavar=("DECK", "RUN_DIR", "COMMIT", "DATE"),
+                    help="record a run taken to the end (repeatable); its row replaces the deck's partial one")
     args = ap.parse_args(argv)
+    if args.completed:
+        rows = {r["deck"]: r for r in json.loads(OUT.read_text())["rows"]} if OUT.exists() else {}
+        for name, run_dir, commit, date in args.completed:
+            if name not in DECKS:
+                raise SystemExit(f"--completed: unknown deck {name!r} (one of {', '.join(DECKS)})")
+            rows[name] = completed(name, Path(run_dir), commit, date, args.threads)
+        result = {"machine": {"cpu_count": os.cpu_count(), "load_at_end": load()},
+                  "rows": sorted(rows.values(), key=lambda r: DECKS.index(r["deck"]))}
+        OUT.write_text(json.dumps(result, indent=1) + "\n")
+        print(report(result))
+        return 0
     if args.recompute:  # rows measured before a change of extrapolate(): their runs are kept as measured
         result = json.loads(OUT.read_text())
         for r in result["rows"]:
+            if "completed" in r:
+                continue
             run = r["run"]
             per = run["time_per_effect"]
             total = sum(per.values()) - per.get("output", 0.0) - per.get("measures", 0.0)
-            run["contact_share"] = sum(v for k, v in per.items() if k.startswith(("contact:", "tool:"))) / total
+            run["contact_share"] = sum(v for k, v in per.items() if k.startswith(CONTACT_ROWS)) / total
             if run.get("ok"):
                 r["extrapolated"] = extrapolate(r, run, _yaml(ROOT / "decks" / "forming" / f"{r['deck']}.yaml"))
         OUT.write_text(json.dumps(result, indent=1) + "\n")

@@ -36,7 +36,6 @@ from scipy.sparse.linalg import LinearOperator, eigs
 
 from fdeck.compile.problem import compile_deck
 from fdeck.deck.read import read_deck
-from fdeck.engine import selective_mass as sm
 from fdeck.engine import solver
 from fdeck.io.checkpoint import read_checkpoint
 from fdeck.run import fit_history
@@ -115,16 +114,11 @@ def main(argv=None) -> None:
         h = 1e-6 / max(np.abs(q).max(), 1e-300)
         return ((internal(x + h * q) - internal(x - h * q)) / (2.0 * h))[free]
 
-    rows, work_q, res, z, pp = s._work
-    snode, sK, _ = s._no_springs
-
     capped = []
 
     def inverse(r):
         a = np.zeros((n, 3))
-        it, _ = sm.solve(a, full(r), s.m, s.conn, s.X, s.Xc, s.Jinv, s.c, s.ptr, s.elems, s.free, s.dinv, 1e-10,
-                         CAP, rows, work_q, res, z, pp, s._part, snode, sK, 0.0)
-        capped.append(it >= CAP)
+        capped.append(s.solve_mass(a, full(r), 1e-10, CAP) >= CAP)
         return a[free]
 
     size = int(free.sum())

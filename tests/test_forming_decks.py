@@ -34,9 +34,9 @@ def test_the_deck_list_is_the_issue_s():
 def test_validates_and_info_prints_tools_pairs_and_step_bounds(deck):
     """Requirement: `fdeck validate` exits 0 with "ok"; `fdeck info` exits 0 and prints one line per tool of the deck
     ("tool NAME: ..."), one per contact pair ("contact with tool 'NAME': N blank nodes, ..., step bound sqrt(m/k) =
-    DT s") with N > 0 and DT finite, and the rest stable step of each step, which includes those bounds (at most
-    the smallest, to the 4 digits printed); the deck's tool and contact names are read from its YAML, independently
-    of the compiler."""
+    DT s", or "step bound 2 sqrt(m/k_t) = DT s" for implicit springs) with N > 0 and DT finite, and the rest stable
+    step of each step, which includes those bounds (at most the smallest, to the 4 digits printed); the deck's tool
+    and contact names are read from its YAML, independently of the compiler."""
     runner = CliRunner()
     r = runner.invoke(app, ["validate", str(deck)])
     assert r.exit_code == 0 and ": ok" in r.output, r.output
@@ -47,8 +47,9 @@ def test_validates_and_info_prints_tools_pairs_and_step_bounds(deck):
         assert re.search(rf"^  tool {tool}: ", r.output, re.M), (tool, r.output)
     bounds = []
     for pair in data["contact"]:
-        m = re.search(rf"contact with tool '{pair['tool']}': (\d+) blank nodes, .*step bound sqrt\(m/k\) = {NUMBER} s",
-                      r.output)
+        # explicit springs bound the step at sqrt(m/k); implicit ones only by their stick springs, 2 sqrt(m/k_t)
+        bound = r"step bound 2 sqrt\(m/k_t\)" if pair.get("springs") == "implicit" else r"step bound sqrt\(m/k\)"
+        m = re.search(rf"contact with tool '{pair['tool']}': (\d+) blank nodes, .*{bound} = {NUMBER} s", r.output)
         assert m and int(m.group(1)) > 0, (pair["tool"], r.output)
         bounds.append(float(m.group(2)))
         assert math.isfinite(bounds[-1]) and bounds[-1] > 0.0

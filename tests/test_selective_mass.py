@@ -696,6 +696,20 @@ def test_extrapolated_warm_start_saves_iterations(monkeypatch):
         assert quad[col][-1] == pytest.approx(last[col][-1], rel=5e-3), col
 
 
+def _distorted_block(rng):
+    """A 6 x 5 x 2 block of 30 x 20 x 1.2 mm, its nodes moved by 0.2 mm (random): mesh, connectivity (n_el, 8), node
+    positions (n_node, 3) [mm], element masses (n_el,) [t] and the lumped nodal masses (n_node,) [t]."""
+    from fdeck.compile.mesh import block
+
+    mesh = block([0, 0, 0], [30.0, 20.0, 1.2], [6, 5, 2])
+    conn = mesh.cells["hexahedron"]
+    X = mesh.X + 0.2 * rng.standard_normal(mesh.X.shape)
+    me = rng.uniform(1e-6, 2e-6, len(conn))
+    m = np.zeros(len(X))
+    np.add.at(m, conn.ravel(), np.repeat(me / 8, 8))
+    return mesh, conn, X, me, m
+
+
 def test_raising_a_few_elements_matches_setting_the_whole_step_again():
     """Requirement: the tracked raise (``SelectiveMass.add``), which touches only the raised elements' nodes, leaves
     the solver as a full set-up with the raised factors would (preconditioner diagonal and its inverse), and returns
@@ -704,17 +718,11 @@ def test_raising_a_few_elements_matches_setting_the_whole_step_again():
     Reference: ``set_step`` from scratch with the raised beta (the same sums in another order: agreement to 1e-14
     relative, round-off of sums of at most eight terms), and the all-element ``_kinetic`` with dc on the raised
     elements and zero elsewhere (1e-13 relative: the same per-element values summed in another order)."""
-    from fdeck.compile.mesh import block
     from fdeck.engine.selective_mass import SelectiveMass, _kinetic
 
     rng = np.random.default_rng(3)
-    mesh = block([0, 0, 0], [30.0, 20.0, 1.2], [6, 5, 2])
-    conn = mesh.cells["hexahedron"]
-    X = mesh.X + 0.2 * rng.standard_normal(mesh.X.shape)  # distorted
+    mesh, conn, X, me, m = _distorted_block(rng)
     n_el, n_node = len(conn), len(X)
-    me = rng.uniform(1e-6, 2e-6, n_el)
-    m = np.zeros(n_node)
-    np.add.at(m, conn.ravel(), np.repeat(me / 8, 8))
     free = np.ones((n_node, 3))
     free[mesh.node_sets["zmin"]] = 0.0  # the bottom face prescribed
     beta = rng.uniform(1.0, 5.0, n_el)
@@ -737,6 +745,36 @@ def test_raising_a_few_elements_matches_setting_the_whole_step_again():
     ke = np.zeros(n_el)
     _kinetic(0.5 * (v_old + v), inc.conn, inc.X, inc.Xc, inc.Jinv, jump, ke)
     assert energy > 0 and abs(energy - ke.sum()) <= 1e-13 * ke.sum()
+
+
+def test_solve_mass_solves_the_scaled_mass_and_keeps_the_prescribed_dofs():
+    """Requirement: ``SelectiveMass.solve_mass`` (``conserve``'s solve, and studies/critical_step.py's inverse)
+    returns out with (M + dM) out = r on the free dofs and leaves the prescribed dofs as given.
+
+    Reference: the operator applied independently, the lumped M times out plus ``product`` (dM, checked against the
+    dense matrix in the first test). The CG stops on the Jacobi-weighted residual at 1e-12 of the right side; the
+    diagonal here spans a factor of about 20, so the plain residual is within 1e-12 x sqrt(20) x a few of |r|:
+    1e-10 relative asserted. The prescribed dofs keep their value bitwise; the default tolerance is the step's
+    (a 1e-2 solve takes fewer iterations than a 1e-12 one)."""
+    from fdeck.engine.selective_mass import SelectiveMass
+
+    rng = np.random.default_rng(11)
+    mesh, conn, X, me, m = _distorted_block(rng)
+    n_el, n_node = len(conn), len(X)
+    free = np.ones((n_node, 3))
+    free[mesh.node_sets["zmin"]] = 0.0
+    sm = SelectiveMass([conn], X)
+    sm.set_step([rng.uniform(1.0, 20.0, n_el)], [me], m, free, (1e-2, 500))
+    r = rng.standard_normal((n_node, 3)) * free
+    out = rng.standard_normal((n_node, 3))  # a warm start on the free dofs, the prescribed values elsewhere
+    fixed = out[free == 0.0].copy()
+    it = sm.solve_mass(out, r, 1e-12, 500)
+    assert 0 < it < 500
+    assert np.array_equal(out[free == 0.0], fixed)
+    lhs = (m[:, None] * out + sm.product(out)) * free  # (M + dM) out on the free dofs, prescribed values included
+    assert np.linalg.norm(lhs - r) <= 1e-10 * np.linalg.norm(r)
+    loose = np.zeros((n_node, 3))
+    assert sm.solve_mass(loose, r) < it
 
 
 def test_default_solve_tolerance_gives_the_answer_of_a_tight_solve():
@@ -813,17 +851,11 @@ def test_momentum_correction_keeps_the_momentum_of_every_dof(prescribed):
     whose added mass reaches 9x the lumped: conditioning about 1e2), 1e-12 of |m v| on the momentum (1^T dM = 0:
     round-off of sums over 126 nodes), 1e-9 relative on the energy change (a difference of two sums of squares,
     its error of the order of the solve's residual times the velocities)."""
-    from fdeck.compile.mesh import block
     from fdeck.engine.selective_mass import SelectiveMass
 
     rng = np.random.default_rng(5)
-    mesh = block([0, 0, 0], [30.0, 20.0, 1.2], [6, 5, 2])
-    conn = mesh.cells["hexahedron"]
-    X = mesh.X + 0.2 * rng.standard_normal(mesh.X.shape)
+    mesh, conn, X, me, m = _distorted_block(rng)
     n_el, n_node = len(conn), len(X)
-    me = rng.uniform(1e-6, 2e-6, n_el)
-    m = np.zeros(n_node)
-    np.add.at(m, conn.ravel(), np.repeat(me / 8, 8))
     free = np.ones((n_node, 3))
     if prescribed:
         free[mesh.node_sets["zmin"]] = 0.0

@@ -610,15 +610,13 @@ class SelectiveMass:
         raise_c[idx] = dc
         np.subtract(self.c, raise_c, out=old_c)
         ke_old = self._whole_kinetic(v, old_c)
-        rows, q, res, z, p = self._work
+        rows = self._work[0]
         element_rows(v, self.conn, self.X, self.Xc, self.Jinv, raise_c, rows)
         r = self._r
         gather_added(rows, self.ptr, self.elems, self.X, v, r)
         r *= -1.0
         dv.fill(0.0)
-        snode, sK, _ = self._no_springs
-        it, _ = solve(dv, r, self.m, self.conn, self.X, self.Xc, self.Jinv, self.c, self.ptr, self.elems, self.free,
-                      self.dinv, self.tol, self.max_it, rows, q, res, z, p, self._part, snode, sK, 0.0)
+        it = self.solve_mass(dv, r)
         raise_c[idx] = 0.0
         self.iterations += it
         self.max_iterations = max(self.max_iterations, it)
@@ -628,6 +626,19 @@ class SelectiveMass:
         if force is not None:
             change += 0.5 * dt * float(np.sum(force * dv))
         return change
+
+    def solve_mass(self, out: np.ndarray, r: np.ndarray, tol: float | None = None, max_it: int | None = None) -> int:
+        """Solve (M + dM)_ff out_f = r_f [N] for out (n_node, 3) [mm/s^2] by the cycle's conjugate gradients,
+        starting from out's free dofs and keeping its prescribed ones; no contact springs (they are stiffness, not
+        mass). tol and max_it default to the step's. Returns the iterations taken. Uses the solve's scratch, so
+        not during a cycle's solve (``conserve`` and studies/critical_step.py call it between cycles)."""
+        rows, q, res, z, p = self._work
+        snode, sK, _ = self._no_springs
+        tol = self.tol if tol is None else tol
+        max_it = self.max_it if max_it is None else max_it
+        it, _ = solve(out, r, self.m, self.conn, self.X, self.Xc, self.Jinv, self.c, self.ptr, self.elems, self.free,
+                      self.dinv, tol, max_it, rows, q, res, z, p, self._part, snode, sK, 0.0)
+        return it
 
     def _whole_kinetic(self, v: np.ndarray, c: np.ndarray) -> float:
         """1/2 v^T (M + dM) v [mJ] with the added-mass factors c (n_el,) [t], in ``book``'s scratch (free between
