@@ -114,6 +114,13 @@ def fdeck_info(deck: Path, env: dict) -> dict:
             "info_ok": proc.returncode == 0}
 
 
+def contact_share(per: dict) -> float:
+    """Share of the per-cycle work [0..1] spent in contact and tools, from a run's timing table per (row -> s): the
+    CONTACT_ROWS over all rows but the events (frames `output`, history `measures`)."""
+    total = sum(per.values()) - per.get("output", 0.0) - per.get("measures", 0.0)
+    return sum(v for k, v in per.items() if k.startswith(CONTACT_ROWS)) / (total or 1.0)
+
+
 def timed_run(cmd: list[str], env: dict, cwd: Path) -> tuple[float, float | None, subprocess.CompletedProcess]:
     """(wall [s], peak resident memory [MiB] or None, process): under /usr/bin/time -v when it exists."""
     timer = shutil.which("time") or ("/usr/bin/time" if Path("/usr/bin/time").exists() else None)
@@ -139,15 +146,12 @@ def partial_run(deck: Path, out: Path, max_wall: float, env: dict) -> dict:
     hist = out / "history.csv"
     rows = max(sum(1 for _ in hist.open()) - 1, 1) if hist.exists() else None  # history rows written (header off)
     per = s.get("time_per_effect", {})
-    total = sum(per.values()) or 1.0
-    total -= per.get("output", 0.0) + per.get("measures", 0.0)  # share of the per-cycle work (events excluded)
-    contact = sum(v for k, v in per.items() if k.startswith(CONTACT_ROWS))
     return {"ok": s["cycles"] > 0 and s["status"] != "failed", "status": s["status"], "exit_code": proc.returncode,
             "cycles": s["cycles"], "simulated_time": s["simulated_time"], "loop_wall": s["wall_time"],
             "process_wall": wall, "setup_wall": wall - s["wall_time"], "compile_time": s["compile_time"],
             "us_per_element_cycle": s["us_per_element_cycle"],
             "us_per_element_cycle_elements_only": s["us_per_element_cycle_elements_only"],
-            "contact_share": contact / total, "time_per_effect": per, "dt_min": s["dt_min"], "dt_max": s["dt_max"],
+            "contact_share": contact_share(per), "time_per_effect": per, "dt_min": s["dt_min"], "dt_max": s["dt_max"],
             "frames": s.get("frames"), "history_rows": rows,
             "peak_rss_mib": rss, "process_cpu": proc.cpu_seconds, "load_before": load_before,
             "load_after": load()}
@@ -215,14 +219,13 @@ def completed(name: str, run_dir: Path, commit: str, date: str, threads: int) ->
                          f"of {s['cycles']} cycles in its last process)")
     per = s["time_per_effect"]
     events = per.get("output", 0.0) + per.get("measures", 0.0)
-    total = sum(per.values()) - events
     info = fdeck_info(ROOT / "decks" / "forming" / f"{name}.yaml", dict(os.environ))
     return {"deck": name, "commit": commit, "date": date, "threads": threads, **info,
             "completed": {"cycles": s["cycles"], "loop_wall": s["wall_time"], "compile_time": s["compile_time"],
                           "us_per_element_cycle": s["us_per_element_cycle"],
                           "us_per_element_cycle_without_events": 1e6 * (s["wall_time"] - events) / s["cycles"]
                           / s["elements"],
-                          "contact_share": sum(v for k, v in per.items() if k.startswith(CONTACT_ROWS)) / total,
+                          "contact_share": contact_share(per),
                           "dt_min": s["dt_min"], "dt_max": s["dt_max"], "time_per_effect": per,
                           "checks": {c["name"]: c["passed"] for c in s["checks"]}}}
 
@@ -298,9 +301,7 @@ def main(argv=None) -> int:
             if "completed" in r:
                 continue
             run = r["run"]
-            per = run["time_per_effect"]
-            total = sum(per.values()) - per.get("output", 0.0) - per.get("measures", 0.0)
-            run["contact_share"] = sum(v for k, v in per.items() if k.startswith(CONTACT_ROWS)) / total
+            run["contact_share"] = contact_share(run["time_per_effect"])
             if run.get("ok"):
                 r["extrapolated"] = extrapolate(r, run, _yaml(ROOT / "decks" / "forming" / f"{r['deck']}.yaml"))
         OUT.write_text(json.dumps(result, indent=1) + "\n")
