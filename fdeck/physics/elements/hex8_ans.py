@@ -106,21 +106,20 @@ ans_tbar fabric_hyper_3weave``, bitwise the same)."""
 
 
 @njit_inline
-def _chol_upper(C, R, Rinv):
-    """R (3, 3) upper triangular with R^T R = C (3, 3) symmetric, Rinv (3,) the reciprocals of its diagonal (one
-    division each, then multiplications); nan when C is not positive definite."""
-    r00 = math.sqrt(C[0, 0])
-    Rinv[0] = 1.0 / r00
-    r01 = C[0, 1] * Rinv[0]
-    r02 = C[0, 2] * Rinv[0]
-    r11 = math.sqrt(C[1, 1] - r01 * r01)
-    Rinv[1] = 1.0 / r11
-    r12 = (C[1, 2] - r01 * r02) * Rinv[1]
-    r22 = math.sqrt(C[2, 2] - r02 * r02 - r12 * r12)
-    Rinv[2] = 1.0 / r22
-    R[0, 0], R[0, 1], R[0, 2] = r00, r01, r02
-    R[1, 0], R[1, 1], R[1, 2] = 0.0, r11, r12
-    R[2, 0], R[2, 1], R[2, 2] = 0.0, 0.0, r22
+def _chol_upper(c00, c01, c02, c11, c12, c22):
+    """Upper triangular R with R^T R = C for the upper triangle of a symmetric C, as scalars (r00, r01, r02, r11,
+    r12, r22) followed by the reciprocals of R's diagonal (one division each, then multiplications); nan when C is
+    not positive definite. Scalars, not arrays: a 3x3 scratch array is memory the compiler must reload after every
+    store to another array it cannot prove distinct (docs/kernels.md, item 13)."""
+    r00 = math.sqrt(c00)
+    i0 = 1.0 / r00
+    r01 = c01 * i0
+    r02 = c02 * i0
+    r11 = math.sqrt(c11 - r01 * r01)
+    i1 = 1.0 / r11
+    r12 = (c12 - r01 * r02) * i1
+    r22 = math.sqrt(c22 - r02 * r02 - r12 * r12)
+    return r00, r01, r02, r11, r12, r22, i0, i1, 1.0 / r22
 
 
 @njit_inline
@@ -145,6 +144,18 @@ def _inv_at(A, e, q, out):
     out[2, 0] = (A[e, q, 1, 0] * A[e, q, 2, 1] - A[e, q, 1, 1] * A[e, q, 2, 0]) * r
     out[2, 1] = (A[e, q, 0, 1] * A[e, q, 2, 0] - A[e, q, 0, 0] * A[e, q, 2, 1]) * r
     out[2, 2] = (A[e, q, 0, 0] * A[e, q, 1, 1] - A[e, q, 0, 1] * A[e, q, 1, 0]) * r
+
+
+@njit_inline
+def _inv3_at(A, e, q):
+    """The nine components of A[e, q]^-1 (A (n_el, n_qp, 3, 3)) as scalars, row by row (``_inv_at``'s arithmetic)."""
+    a00, a01, a02 = A[e, q, 0, 0], A[e, q, 0, 1], A[e, q, 0, 2]
+    a10, a11, a12 = A[e, q, 1, 0], A[e, q, 1, 1], A[e, q, 1, 2]
+    a20, a21, a22 = A[e, q, 2, 0], A[e, q, 2, 1], A[e, q, 2, 2]
+    r = 1.0 / (a00 * (a11 * a22 - a12 * a21) - a01 * (a10 * a22 - a12 * a20) + a02 * (a10 * a21 - a11 * a20))
+    return ((a11 * a22 - a12 * a21) * r, (a02 * a21 - a01 * a22) * r, (a01 * a12 - a02 * a11) * r,
+            (a12 * a20 - a10 * a22) * r, (a00 * a22 - a02 * a20) * r, (a02 * a10 - a00 * a12) * r,
+            (a10 * a21 - a11 * a20) * r, (a01 * a20 - a00 * a21) * r, (a00 * a11 - a01 * a10) * r)
 
 
 @njit_inline
@@ -173,34 +184,34 @@ def kinematics_ans(x, conn, b, dN, w, dxi_s, index, Jinv, Gq, Gs, F, J, Fans, F0
     K_q = J0^-T Delta_q J0^-1 the assumed-shear modification and K_bar = sum_r w_r K_r / V0 its element mean."""
     n_el = conn.shape[0]
     for chunk in prange((n_el + CHUNK - 1) // CHUNK):
+        xe = np.empty((8, 3))
         C0 = np.empty((3, 3))
         Cq = np.empty((8, 3, 3))
         Kq = np.empty((8, 3, 3))
         Kbar = np.empty((3, 3))
-        C = np.empty((3, 3))
         W = np.empty((3, 3))
-        D = np.zeros((3, 3))  # natural shear correction Delta, zero diagonal (never written)
         T = np.empty((3, 3))
-        Rc = np.empty((3, 3))
-        Ra = np.empty((3, 3))
-        M = np.empty((3, 3))
         A = np.empty(6)
-        Rinv = np.empty(3)
         for e in range(chunk * CHUNK, min(n_el, (chunk + 1) * CHUNK)):
             _kinematics_element(x, conn, b, dN, w, dxi_s, index, Jinv, Gq, Gs, F, J, Fans, F0s, gs, e,
-                                C0, Cq, Kq, Kbar, C, W, D, T, Rc, Ra, M, A, Rinv)
+                                xe, C0, Cq, Kq, Kbar, W, T, A)
 
 
 @njit_inline
 def _kinematics_element(x, conn, b, dN, w, dxi_s, index, Jinv, Gq, Gs, F, J, Fans, F0s, gs, e,
-                        C0, Cq, Kq, Kbar, C, W, D, T, Rc, Ra, M, A, Rinv):
-    """``kinematics_ans`` for element e, with the chunk's scratch arrays (3, 3) but Cq, Kq (8, 3, 3), A (6,) and
-    Rinv (3,)."""
+                        xe, C0, Cq, Kq, Kbar, W, T, A):
+    """``kinematics_ans`` for element e, with the chunk's scratch: xe (8, 3) the element's nodes, Cq, Kq (8, 3, 3),
+    A (6,), the rest (3, 3). The element's nodes are gathered once and what stays within a point is kept in
+    scalars; every value is formed by the same operations in the same order as before (docs/kernels.md, item 13),
+    the zeros of the natural correction's diagonal and of Rc^-1 Ra's lower triangle aside."""
+    for a in range(8):
+        n = conn[e, a]
+        xe[a, 0], xe[a, 1], xe[a, 2] = x[n, 0], x[n, 1], x[n, 2]
     for i in range(3):
         for j in range(3):
             acc = 0.0
             for a in range(8):
-                acc += x[conn[e, a], i] * b[e, a, j]
+                acc += xe[a, i] * b[e, a, j]
             F0s[e, i, j] = acc
     for i in range(3):
         for j in range(3):
@@ -213,50 +224,101 @@ def _kinematics_element(x, conn, b, dN, w, dxi_s, index, Jinv, Gq, Gs, F, J, Fan
             for r in range(3):
                 acc = 0.0
                 for a in range(8):
-                    acc += x[conn[e, a], r] * dxi_s[s, a, k]
+                    acc += xe[a, r] * dxi_s[s, a, k]
                 gs[e, s, r, c] = acc
         A[s] = (gs[e, s, 0, 0] * gs[e, s, 0, 1] + gs[e, s, 1, 0] * gs[e, s, 1, 1] + gs[e, s, 2, 0] * gs[e, s, 2, 1]
                 - _natural(C0, Gs, e, s, i, j))
-    _deformation_gradients(x, conn, dN, F, J, e)
     for q in range(8):
-        for i in range(3):
-            for j in range(3):
-                C[i, j] = F[e, q, 0, i] * F[e, q, 0, j] + F[e, q, 1, i] * F[e, q, 1, j] + F[e, q, 2, i] * F[e, q, 2, j]
-                Cq[q, i, j] = C[i, j]
-                W[i, j] = C[i, j] - C0[i, j]
-        for k in range(3):
-            i, j = PAIRS[k]
-            d = A[index[q, k]] - _natural(W, Gq, e, q, i, j)
-            D[i, j] = d
-            D[j, i] = d
-        # K_q = Jinv^T D Jinv (T = D Jinv first)
-        for i in range(3):
-            for j in range(3):
-                T[i, j] = D[i, 0] * Jinv[e, q, 0, j] + D[i, 1] * Jinv[e, q, 1, j] + D[i, 2] * Jinv[e, q, 2, j]
-        for i in range(3):
-            for j in range(3):
-                Kq[q, i, j] = Jinv[e, q, 0, i] * T[0, j] + Jinv[e, q, 1, i] * T[1, j] + Jinv[e, q, 2, i] * T[2, j]
-    _point_mean(Kq, w, e, Kbar)
-    for q in range(8):
-        for i in range(3):
-            for j in range(3):
-                C[i, j] = Cq[q, i, j]
-        # C~ = C + K_q - K_bar (Ra's reciprocals first, then Rc's, kept for the back substitution)
-        for i in range(3):
-            for j in range(3):
-                W[i, j] = C[i, j] + (Kq[q, i, j] - Kbar[i, j])
-        _chol_upper(W, Ra, Rinv)
-        _chol_upper(C, Rc, Rinv)
-        # F~ = F Rc^-1 Ra: back substitution Rc M = Ra, then F M
+        f00, f01, f02, f10, f11, f12, f20, f21, f22 = _gradient(xe, dN, e, q)
+        F[e, q, 0, 0], F[e, q, 0, 1], F[e, q, 0, 2] = f00, f01, f02
+        F[e, q, 1, 0], F[e, q, 1, 1], F[e, q, 1, 2] = f10, f11, f12
+        F[e, q, 2, 0], F[e, q, 2, 1], F[e, q, 2, 2] = f20, f21, f22
+        J[e, q] = (f00 * (f11 * f22 - f12 * f21) - f01 * (f10 * f22 - f12 * f20)
+                   + f02 * (f10 * f21 - f11 * f20))
+        c00 = f00 * f00 + f10 * f10 + f20 * f20
+        c01 = f00 * f01 + f10 * f11 + f20 * f21
+        c02 = f00 * f02 + f10 * f12 + f20 * f22
+        c11 = f01 * f01 + f11 * f11 + f21 * f21
+        c12 = f01 * f02 + f11 * f12 + f21 * f22
+        c22 = f02 * f02 + f12 * f12 + f22 * f22
+        Cq[q, 0, 0], Cq[q, 0, 1], Cq[q, 0, 2], Cq[q, 1, 1], Cq[q, 1, 2], Cq[q, 2, 2] = c00, c01, c02, c11, c12, c22
+        W[0, 0], W[0, 1], W[0, 2] = c00 - C0[0, 0], c01 - C0[0, 1], c02 - C0[0, 2]
+        W[1, 0], W[1, 1], W[1, 2] = c01 - C0[1, 0], c11 - C0[1, 1], c12 - C0[1, 2]
+        W[2, 0], W[2, 1], W[2, 2] = c02 - C0[2, 0], c12 - C0[2, 1], c22 - C0[2, 2]
+        # the natural correction Delta: zero diagonal, d01, d12, d02 off it
+        d01 = A[index[q, 0]] - _natural(W, Gq, e, q, 0, 1)
+        d12 = A[index[q, 1]] - _natural(W, Gq, e, q, 1, 2)
+        d02 = A[index[q, 2]] - _natural(W, Gq, e, q, 0, 2)
+        # K_q = Jinv^T Delta Jinv (T = Delta Jinv first); symmetric, and only its upper triangle is read
         for j in range(3):
-            for i in range(2, -1, -1):
-                acc = Ra[i, j]
-                for k in range(i + 1, 3):
-                    acc -= Rc[i, k] * M[k, j]
-                M[i, j] = acc * Rinv[i]
+            j0, j1, j2 = Jinv[e, q, 0, j], Jinv[e, q, 1, j], Jinv[e, q, 2, j]
+            T[0, j] = 0.0 * j0 + d01 * j1 + d02 * j2
+            T[1, j] = d01 * j0 + 0.0 * j1 + d12 * j2
+            T[2, j] = d02 * j0 + d12 * j1 + 0.0 * j2
         for i in range(3):
-            for j in range(3):
-                Fans[e, q, i, j] = F[e, q, i, 0] * M[0, j] + F[e, q, i, 1] * M[1, j] + F[e, q, i, 2] * M[2, j]
+            k0, k1, k2 = Jinv[e, q, 0, i], Jinv[e, q, 1, i], Jinv[e, q, 2, i]
+            for j in range(i, 3):
+                Kq[q, i, j] = k0 * T[0, j] + k1 * T[1, j] + k2 * T[2, j]
+    _upper_mean(Kq, w, e, Kbar)
+    for q in range(8):
+        c00, c01, c02 = Cq[q, 0, 0], Cq[q, 0, 1], Cq[q, 0, 2]
+        c11, c12, c22 = Cq[q, 1, 1], Cq[q, 1, 2], Cq[q, 2, 2]
+        # C~ = C + K_q - K_bar and its upper Cholesky factor Ra, then C's factor Rc
+        ra00, ra01, ra02, ra11, ra12, ra22, _, _, _ = _chol_upper(
+            c00 + (Kq[q, 0, 0] - Kbar[0, 0]), c01 + (Kq[q, 0, 1] - Kbar[0, 1]), c02 + (Kq[q, 0, 2] - Kbar[0, 2]),
+            c11 + (Kq[q, 1, 1] - Kbar[1, 1]), c12 + (Kq[q, 1, 2] - Kbar[1, 2]), c22 + (Kq[q, 2, 2] - Kbar[2, 2]))
+        _, rc01, rc02, _, rc12, _, i0, i1, i2 = _chol_upper(c00, c01, c02, c11, c12, c22)
+        # F~ = F M, M = Rc^-1 Ra upper triangular (back substitution)
+        m22 = ra22 * i2
+        m12 = (ra12 - rc12 * m22) * i1
+        m11 = ra11 * i1
+        m02 = (ra02 - rc01 * m12 - rc02 * m22) * i0
+        m01 = (ra01 - rc01 * m11) * i0
+        m00 = ra00 * i0
+        for i in range(3):
+            fi0, fi1, fi2 = F[e, q, i, 0], F[e, q, i, 1], F[e, q, i, 2]
+            Fans[e, q, i, 0] = fi0 * m00
+            Fans[e, q, i, 1] = fi0 * m01 + fi1 * m11
+            Fans[e, q, i, 2] = fi0 * m02 + fi1 * m12 + fi2 * m22
+
+
+@njit_inline
+def _gradient(xe, dN, e, q):
+    """The nine components of F = sum_a x_a (x) dN[e, q, a] at point q from the element's nodes xe (8, 3), summed
+    in registers over the nodes in order (``hex8._deformation_gradients``'s arithmetic)."""
+    f00 = f01 = f02 = f10 = f11 = f12 = f20 = f21 = f22 = 0.0
+    for a in range(8):
+        x0, x1, x2 = xe[a, 0], xe[a, 1], xe[a, 2]
+        d0, d1, d2 = dN[e, q, a, 0], dN[e, q, a, 1], dN[e, q, a, 2]
+        f00 += x0 * d0
+        f01 += x0 * d1
+        f02 += x0 * d2
+        f10 += x1 * d0
+        f11 += x1 * d1
+        f12 += x1 * d2
+        f20 += x2 * d0
+        f21 += x2 * d1
+        f22 += x2 * d2
+    return f00, f01, f02, f10, f11, f12, f20, f21, f22
+
+
+@njit_inline
+def _upper_mean(Aq, w, e, out):
+    """The upper triangle of out (3, 3) = sum_q w[e, q] Aq[q] / sum_q w[e, q], the volume mean over element e's
+    points of Aq (8, 3, 3), read on its upper triangle only (``_point_mean``'s arithmetic)."""
+    vol = 0.0
+    for i in range(3):
+        for j in range(i, 3):
+            out[i, j] = 0.0
+    for q in range(Aq.shape[0]):
+        wq = w[e, q]
+        vol += wq
+        for i in range(3):
+            for j in range(i, 3):
+                out[i, j] += wq * Aq[q, i, j]
+    for i in range(3):
+        for j in range(i, 3):
+            out[i, j] /= vol
 
 
 @njit_parallel
@@ -271,24 +333,20 @@ def forces_ans(F, Fans, Pans, dN, w, b, dxi_s, index, Jinv, Gq, Gs, F0s, gs, fe)
     """
     n_el = fe.shape[0]
     for chunk in prange((n_el + CHUNK - 1) // CHUNK):
-        Fi = np.empty((3, 3))
-        S = np.empty((3, 3))
-        Sn = np.empty((3, 3))
         T = np.empty((3, 3))
-        M = np.empty((3, 3))
         B0 = np.empty((3, 3))
         cs = np.empty(6)
         Sq = np.empty((8, 3, 3))
         Sbar = np.empty((3, 3))
         for e in range(chunk * CHUNK, min(n_el, (chunk + 1) * CHUNK)):
-            _forces_element(F, Fans, Pans, dN, w, b, dxi_s, index, Jinv, Gq, Gs, F0s, gs, fe, e,
-                            Fi, S, Sn, T, M, B0, cs, Sq, Sbar)
+            _forces_element(F, Fans, Pans, dN, w, b, dxi_s, index, Jinv, Gq, Gs, F0s, gs, fe, e, T, B0, cs, Sq, Sbar)
 
 
 @njit_inline
-def _forces_element(F, Fans, Pans, dN, w, b, dxi_s, index, Jinv, Gq, Gs, F0s, gs, fe, e,
-                    Fi, S, Sn, T, M, B0, cs, Sq, Sbar):
-    """``forces_ans`` for element e, with the chunk's scratch: (3, 3) arrays but cs (6,) and Sq (8, 3, 3)."""
+def _forces_element(F, Fans, Pans, dN, w, b, dxi_s, index, Jinv, Gq, Gs, F0s, gs, fe, e, T, B0, cs, Sq, Sbar):
+    """``forces_ans`` for element e, with the chunk's scratch: (3, 3) arrays but cs (6,) and Sq (8, 3, 3). What
+    stays within a point is kept in scalars; every value is formed by the same operations in the same order as
+    before (docs/kernels.md, item 13), the unused diagonal of w S~ aside."""
     for a in range(8):
         for i in range(3):
             fe[e, a, i] = 0.0
@@ -298,43 +356,66 @@ def _forces_element(F, Fans, Pans, dN, w, b, dxi_s, index, Jinv, Gq, Gs, F0s, gs
     for s in range(6):
         cs[s] = 0.0
     for q in range(8):
-        _inv_at(Fans, e, q, Fi)
+        i00, i01, i02, i10, i11, i12, i20, i21, i22 = _inv3_at(Fans, e, q)
+        for j in range(3):  # S = F~^-1 P~ into T
+            p0, p1, p2 = Pans[e, q, 0, j], Pans[e, q, 1, j], Pans[e, q, 2, j]
+            T[0, j] = i00 * p0 + i01 * p1 + i02 * p2
+            T[1, j] = i10 * p0 + i11 * p1 + i12 * p2
+            T[2, j] = i20 * p0 + i21 * p1 + i22 * p2
         for i in range(3):
             for j in range(3):
-                S[i, j] = Fi[i, 0] * Pans[e, q, 0, j] + Fi[i, 1] * Pans[e, q, 1, j] + Fi[i, 2] * Pans[e, q, 2, j]
-        for i in range(3):
-            for j in range(3):
-                Sq[q, i, j] = 0.5 * (S[i, j] + S[j, i])
+                Sq[q, i, j] = 0.5 * (T[i, j] + T[j, i])
     _point_mean(Sq, w, e, Sbar)
     for q in range(8):
-        # the modification K_q - K_bar sees the stress's deviation from its element mean, S - S_bar
+        wq = w[e, q]
+        # the modification K_q - K_bar sees the stress's deviation from its element mean: T = (S - S_bar) Jinv^T
         for i in range(3):
+            d0, d1, d2 = Sq[q, i, 0] - Sbar[i, 0], Sq[q, i, 1] - Sbar[i, 1], Sq[q, i, 2] - Sbar[i, 2]
             for j in range(3):
-                T[i, j] = ((Sq[q, i, 0] - Sbar[i, 0]) * Jinv[e, q, j, 0] + (Sq[q, i, 1] - Sbar[i, 1]) * Jinv[e, q, j, 1]
-                           + (Sq[q, i, 2] - Sbar[i, 2]) * Jinv[e, q, j, 2])  # (S - S_bar) Jinv^T
+                T[i, j] = d0 * Jinv[e, q, j, 0] + d1 * Jinv[e, q, j, 1] + d2 * Jinv[e, q, j, 2]
+        # w S~ = w Jinv T off its diagonal (the diagonal is not used)
+        j00, j01, j02 = Jinv[e, q, 0, 0], Jinv[e, q, 0, 1], Jinv[e, q, 0, 2]
+        j10, j11, j12 = Jinv[e, q, 1, 0], Jinv[e, q, 1, 1], Jinv[e, q, 1, 2]
+        j20, j21, j22 = Jinv[e, q, 2, 0], Jinv[e, q, 2, 1], Jinv[e, q, 2, 2]
+        s01 = wq * (j00 * T[0, 1] + j01 * T[1, 1] + j02 * T[2, 1])
+        s02 = wq * (j00 * T[0, 2] + j01 * T[1, 2] + j02 * T[2, 2])
+        s10 = wq * (j10 * T[0, 0] + j11 * T[1, 0] + j12 * T[2, 0])
+        s12 = wq * (j10 * T[0, 2] + j11 * T[1, 2] + j12 * T[2, 2])
+        s20 = wq * (j20 * T[0, 0] + j21 * T[1, 0] + j22 * T[2, 0])
+        s21 = wq * (j20 * T[0, 1] + j21 * T[1, 1] + j22 * T[2, 1])
+        cs[index[q, 0]] += s01
+        cs[index[q, 1]] += s12
+        cs[index[q, 2]] += s02
+        # split w S~ into its diagonal (kept at q) and off-diagonal (moved to the affine part) in Cartesian form:
+        # off_ij = sum_{k != m} G_ik S~_km G_jm, T = w S - off
         for i in range(3):
+            gi0, gi1, gi2 = Gq[e, q, i, 0], Gq[e, q, i, 1], Gq[e, q, i, 2]
+            p01, p02, p10, p12, p20, p21 = gi0 * s01, gi0 * s02, gi1 * s10, gi1 * s12, gi2 * s20, gi2 * s21
             for j in range(3):
-                Sn[i, j] = w[e, q] * (Jinv[e, q, i, 0] * T[0, j] + Jinv[e, q, i, 1] * T[1, j]
-                                      + Jinv[e, q, i, 2] * T[2, j])
-        for k in range(3):
-            i, j = PAIRS[k]
-            cs[index[q, k]] += Sn[i, j]
-        # split w S~ into its diagonal (kept at q) and off-diagonal (moved to the affine part) in Cartesian form
-        for i in range(3):
-            for j in range(3):
-                off = 0.0
-                for k in range(3):
-                    for m in range(3):
-                        if m != k:
-                            off += Gq[e, q, i, k] * Sn[k, m] * Gq[e, q, j, m]
-                T[i, j] = w[e, q] * Sq[q, i, j] - off
+                gj0, gj1, gj2 = Gq[e, q, j, 0], Gq[e, q, j, 1], Gq[e, q, j, 2]
+                off = ((((0.0 + p01 * gj1) + p02 * gj2) + p10 * gj0) + p12 * gj2) + p20 * gj0 + p21 * gj1
+                T[i, j] = wq * Sq[q, i, j] - off
                 B0[i, j] += off
-        for i in range(3):
-            for j in range(3):
-                M[i, j] = F[e, q, i, 0] * T[0, j] + F[e, q, i, 1] * T[1, j] + F[e, q, i, 2] * T[2, j]
+        # M = F T against the point's shape gradients
+        f00, f01, f02 = F[e, q, 0, 0], F[e, q, 0, 1], F[e, q, 0, 2]
+        f10, f11, f12 = F[e, q, 1, 0], F[e, q, 1, 1], F[e, q, 1, 2]
+        f20, f21, f22 = F[e, q, 2, 0], F[e, q, 2, 1], F[e, q, 2, 2]
+        t00, t01, t02, t10, t11, t12 = T[0, 0], T[0, 1], T[0, 2], T[1, 0], T[1, 1], T[1, 2]
+        t20, t21, t22 = T[2, 0], T[2, 1], T[2, 2]
+        m00 = f00 * t00 + f01 * t10 + f02 * t20
+        m01 = f00 * t01 + f01 * t11 + f02 * t21
+        m02 = f00 * t02 + f01 * t12 + f02 * t22
+        m10 = f10 * t00 + f11 * t10 + f12 * t20
+        m11 = f10 * t01 + f11 * t11 + f12 * t21
+        m12 = f10 * t02 + f11 * t12 + f12 * t22
+        m20 = f20 * t00 + f21 * t10 + f22 * t20
+        m21 = f20 * t01 + f21 * t11 + f22 * t21
+        m22 = f20 * t02 + f21 * t12 + f22 * t22
         for a in range(8):
-            for i in range(3):
-                fe[e, a, i] += M[i, 0] * dN[e, q, a, 0] + M[i, 1] * dN[e, q, a, 1] + M[i, 2] * dN[e, q, a, 2]
+            d0, d1, d2 = dN[e, q, a, 0], dN[e, q, a, 1], dN[e, q, a, 2]
+            fe[e, a, 0] += m00 * d0 + m01 * d1 + m02 * d2
+            fe[e, a, 1] += m10 * d0 + m11 * d1 + m12 * d2
+            fe[e, a, 2] += m20 * d0 + m21 * d1 + m22 * d2
     for s in range(6):
         i, j = PAIRS[s // 2]
         c = cs[s]
@@ -346,11 +427,12 @@ def _forces_element(F, Fans, Pans, dN, w, b, dxi_s, index, Jinv, Gq, Gs, F0s, gs
             for r in range(3):
                 fe[e, a, r] += gs[e, s, r, 1] * di + gs[e, s, r, 0] * dj
     for i in range(3):
-        for j in range(3):
-            M[i, j] = F0s[e, i, 0] * B0[0, j] + F0s[e, i, 1] * B0[1, j] + F0s[e, i, 2] * B0[2, j]
-    for a in range(8):
-        for i in range(3):
-            fe[e, a, i] += M[i, 0] * b[e, a, 0] + M[i, 1] * b[e, a, 1] + M[i, 2] * b[e, a, 2]
+        f0, f1, f2 = F0s[e, i, 0], F0s[e, i, 1], F0s[e, i, 2]
+        m0 = f0 * B0[0, 0] + f1 * B0[1, 0] + f2 * B0[2, 0]
+        m1 = f0 * B0[0, 1] + f1 * B0[1, 1] + f2 * B0[2, 1]
+        m2 = f0 * B0[0, 2] + f1 * B0[1, 2] + f2 * B0[2, 2]
+        for a in range(8):
+            fe[e, a, i] += m0 * b[e, a, 0] + m1 * b[e, a, 1] + m2 * b[e, a, 2]
 
 
 class Hex8AnsGroup(Hex8Group):

@@ -71,7 +71,7 @@ import numpy as np
 from fdeck.compile.errors import CompileError
 from fdeck.jit import njit_parallel, prange
 from fdeck.physics.elements.hex8 import _det_at, _inline, mean_pressure
-from fdeck.physics.elements.hex8_ans import CHUNK, Hex8AnsGroup, _inv_at, forces_ans, kinematics_ans
+from fdeck.physics.elements.hex8_ans import CHUNK, Hex8AnsGroup, _inv3_at, forces_ans, kinematics_ans
 from fdeck.registry import FormulationKind, register_formulation
 
 COUPLING = 1.0 / 9.0
@@ -178,30 +178,34 @@ class Hex8AnsFbarGroup(Hex8AnsGroup):
 
 
 @_inline
-def _thickness_direction(F, frame, e, q, d, G, k):
-    """k = F^-T f3 for point (e, q) of a gradient field F (n_el, n_qp, 3, 3) into k (3,), with G (3, 3) scratch
-    holding F^-1 and d = det F (the caller's, computed once); returns |k|^2 = f3 . C^-1 . f3 = 1 / T^2 (T the
-    thickness stretch normal to the deformed fibre plane)."""
+def _thickness_direction(F, frame, e, q, d):
+    """F^-1 (nine scalars, row by row), k = F^-T f3 (three) and |k|^2 = f3 . C^-1 . f3 = 1 / T^2 at point (e, q)
+    of a gradient field F (n_el, n_qp, 3, 3), with d = det F (the caller's, computed once); T is the thickness
+    stretch normal to the deformed fibre plane, f3 the third row of frame (n_el, 3, 3). Scalars, not scratch
+    arrays, so that nothing is reloaded after the caller's stores (docs/kernels.md, item 13)."""
     r = 1.0 / d
-    for i in range(3):
-        i1, i2 = (i + 1) % 3, (i + 2) % 3
-        for j in range(3):
-            j1, j2 = (j + 1) % 3, (j + 2) % 3
-            # (F^-1)_ji = cof(F)_ij / det F
-            G[j, i] = (F[e, q, i1, j1] * F[e, q, i2, j2] - F[e, q, i1, j2] * F[e, q, i2, j1]) * r
-    n2 = 0.0
-    for i in range(3):
-        k[i] = G[0, i] * frame[e, 2, 0] + G[1, i] * frame[e, 2, 1] + G[2, i] * frame[e, 2, 2]
-        n2 += k[i] * k[i]
-    return n2
+    f00, f01, f02 = F[e, q, 0, 0], F[e, q, 0, 1], F[e, q, 0, 2]
+    f10, f11, f12 = F[e, q, 1, 0], F[e, q, 1, 1], F[e, q, 1, 2]
+    f20, f21, f22 = F[e, q, 2, 0], F[e, q, 2, 1], F[e, q, 2, 2]
+    # (F^-1)_ji = cof(F)_ij / det F
+    g00, g10, g20 = (f11 * f22 - f12 * f21) * r, (f12 * f20 - f10 * f22) * r, (f10 * f21 - f11 * f20) * r
+    g01, g11, g21 = (f21 * f02 - f22 * f01) * r, (f22 * f00 - f20 * f02) * r, (f20 * f01 - f21 * f00) * r
+    g02, g12, g22 = (f01 * f12 - f02 * f11) * r, (f02 * f10 - f00 * f12) * r, (f00 * f11 - f01 * f10) * r
+    n0, n1, n2 = frame[e, 2, 0], frame[e, 2, 1], frame[e, 2, 2]
+    k0 = g00 * n0 + g10 * n1 + g20 * n2
+    k1 = g01 * n0 + g11 * n1 + g21 * n2
+    k2 = g02 * n0 + g12 * n1 + g22 * n2
+    return (g00, g01, g02, g10, g11, g12, g20, g21, g22, k0, k1, k2, ((0.0 + k0 * k0) + k1 * k1) + k2 * k2)
 
 
 @_inline
-def _thickness(F, frame, e, q, G, k):
-    """T = (f3 . C^-1 . f3)^(-1/2) at point (e, q) of F (n_el, n_qp, 3, 3), k = F^-T f3 and G = F^-1 left in the
-    scratch (3,) and (3, 3); nan when det F <= 0."""
+def _thickness(F, frame, e, q):
+    """T = (f3 . C^-1 . f3)^(-1/2) at point (e, q) of F (n_el, n_qp, 3, 3), nan when det F <= 0, followed by
+    ``_thickness_direction``'s F^-1 (nine scalars) and k = F^-T f3 (three)."""
     d = _det_at(F, e, q)
-    return 1.0 / math.sqrt(_thickness_direction(F, frame, e, q, d, G, k)) if d > 0.0 else np.nan
+    g00, g01, g02, g10, g11, g12, g20, g21, g22, k0, k1, k2, n2 = _thickness_direction(F, frame, e, q, d)
+    t = 1.0 / math.sqrt(n2) if d > 0.0 else np.nan
+    return t, g00, g01, g02, g10, g11, g12, g20, g21, g22, k0, k1, k2
 
 
 @njit_parallel
@@ -213,28 +217,28 @@ def tbar_on_ans(w, F, Fans, frame, T, Tbar, ratio, Fmat):
     average of T; frame (n_el, 3, 3) rows f1, f2, f3. A non-positive det F or det F~ gives nan."""
     n_el, n_qp = w.shape
     for chunk in prange((n_el + CHUNK - 1) // CHUNK):
-        G = np.empty((3, 3))
-        k = np.empty(3)
+        ck = np.empty((n_qp, 3))  # (T - T~) T~ k~ per point
         for e in range(chunk * CHUNK, min(n_el, (chunk + 1) * CHUNK)):
             vol = 0.0
             tw = 0.0
             for q in range(n_qp):
-                t = _thickness(F, frame, e, q, G, k)
-                ta = _thickness(Fans, frame, e, q, G, k)
+                t = _thickness(F, frame, e, q)[0]
+                ta, _, _, _, _, _, _, _, _, _, k0, k1, k2 = _thickness(Fans, frame, e, q)
                 T[e, q] = t
                 vol += w[e, q]
                 tw += w[e, q] * t
                 c = (t - ta) * ta
-                for i in range(3):
-                    for j in range(3):
-                        Fmat[e, q, i, j] = Fans[e, q, i, j] + c * k[i] * frame[e, 2, j]
+                ck[q, 0], ck[q, 1], ck[q, 2] = c * k0, c * k1, c * k2
             Tbar[e] = tw / vol
+            n0, n1, n2 = frame[e, 2, 0], frame[e, 2, 1], frame[e, 2, 2]
             for q in range(n_qp):
                 r = (Tbar[e] / T[e, q]) ** (1.0 / 3.0)
                 ratio[e, q] = r
                 for i in range(3):
-                    for j in range(3):
-                        Fmat[e, q, i, j] *= r
+                    c = ck[q, i]
+                    Fmat[e, q, i, 0] = (Fans[e, q, i, 0] + c * n0) * r
+                    Fmat[e, q, i, 1] = (Fans[e, q, i, 1] + c * n1) * r
+                    Fmat[e, q, i, 2] = (Fans[e, q, i, 2] + c * n2) * r
 
 
 @njit_parallel
@@ -246,10 +250,7 @@ def stress_ans_tbar(Fans, frame, T, Tbar, ratio, Fmat, Pmat, w, p, Peff, b):
     average. Pmat = dpsi/dF^ (n_el, 8, 3, 3) from the material at F^ = Fmat."""
     n_el, n_qp = w.shape
     for chunk in prange((n_el + CHUNK - 1) // CHUNK):
-        G = np.empty((3, 3))
         S = np.empty((3, 3))
-        k = np.empty(3)
-        m = np.empty(3)
         for e in range(chunk * CHUNK, min(n_el, (chunk + 1) * CHUNK)):
             vol = 0.0
             pw = 0.0
@@ -262,26 +263,33 @@ def stress_ans_tbar(Fans, frame, T, Tbar, ratio, Fmat, Pmat, w, p, Peff, b):
                 pw += w[e, q] * p[e, q]
                 vol += w[e, q]
             pbar = pw / vol
+            n0, n1, n2 = frame[e, 2, 0], frame[e, 2, 1], frame[e, 2, 2]
             for q in range(n_qp):
-                _inv_at(Fmat, e, q, G)
-                for i in range(3):
-                    for j in range(3):
-                        S[i, j] = G[i, 0] * Pmat[e, q, 0, j] + G[i, 1] * Pmat[e, q, 1, j] + G[i, 2] * Pmat[e, q, 2, j]
+                h00, h01, h02, h10, h11, h12, h20, h21, h22 = _inv3_at(Fmat, e, q)
+                for j in range(3):
+                    p0, p1, p2 = Pmat[e, q, 0, j], Pmat[e, q, 1, j], Pmat[e, q, 2, j]
+                    S[0, j] = h00 * p0 + h01 * p1 + h02 * p2
+                    S[1, j] = h10 * p0 + h11 * p1 + h12 * p2
+                    S[2, j] = h20 * p0 + h21 * p1 + h22 * p2
                 s33 = 0.0
-                for i in range(3):
-                    s33 += frame[e, 2, i] * (S[i, 0] * frame[e, 2, 0] + S[i, 1] * frame[e, 2, 1]
-                                             + S[i, 2] * frame[e, 2, 2])
+                s33 += n0 * (S[0, 0] * n0 + S[0, 1] * n1 + S[0, 2] * n2)
+                s33 += n1 * (S[1, 0] * n0 + S[1, 1] * n1 + S[1, 2] * n2)
+                s33 += n2 * (S[2, 0] * n0 + S[2, 1] * n1 + S[2, 2] * n2)
                 r2 = ratio[e, q] * ratio[e, q]
                 t = T[e, q]
                 b[e, q] = r2 * s33 * t * t - p[e, q] + pbar * t / Tbar[e]
-                n2 = _thickness_direction(Fans, frame, e, q, _det_at(Fans, e, q), G, k)
+                g00, g01, g02, g10, g11, g12, g20, g21, g22, k0, k1, k2, nk = _thickness_direction(
+                    Fans, frame, e, q, _det_at(Fans, e, q))
+                m0 = g00 * k0 + g01 * k1 + g02 * k2  # C~^-1 f3 = F~^-1 F~^-T f3
+                m1 = g10 * k0 + g11 * k1 + g12 * k2
+                m2 = g20 * k0 + g21 * k1 + g22 * k2
+                c = r2 * s33 / (nk * nk)  # r^2 s33 T~^4; F~ m~ = k~
                 for i in range(3):
-                    m[i] = G[i, 0] * k[0] + G[i, 1] * k[1] + G[i, 2] * k[2]  # C~^-1 f3 = F~^-1 F~^-T f3
-                c = r2 * s33 / (n2 * n2)  # r^2 s33 T~^4; F~ m~ = k~
-                for i in range(3):
-                    for j in range(3):
-                        fs = Fans[e, q, i, 0] * S[0, j] + Fans[e, q, i, 1] * S[1, j] + Fans[e, q, i, 2] * S[2, j]
-                        Peff[e, q, i, j] = r2 * fs - c * k[i] * m[j]
+                    a0, a1, a2 = Fans[e, q, i, 0], Fans[e, q, i, 1], Fans[e, q, i, 2]
+                    ci = c * (k0 if i == 0 else k1 if i == 1 else k2)
+                    Peff[e, q, i, 0] = r2 * (a0 * S[0, 0] + a1 * S[1, 0] + a2 * S[2, 0]) - ci * m0
+                    Peff[e, q, i, 1] = r2 * (a0 * S[0, 1] + a1 * S[1, 1] + a2 * S[2, 1]) - ci * m1
+                    Peff[e, q, i, 2] = r2 * (a0 * S[0, 2] + a1 * S[1, 2] + a2 * S[2, 2]) - ci * m2
 
 
 @njit_parallel
@@ -290,21 +298,18 @@ def add_thickness_forces(F, frame, T, b, dN, w, fe):
     force on node a is w_q b_q T_q^2 k_q (m_q . dN_qa), k = F^-T f3 = F m; F (n_el, 8, 3, 3) the true gradient, b
     (n_el, 8) [MPa] from ``stress_ans_tbar``, dN (n_el, 8, 8, 3) [1/mm], w (n_el, 8) [mm^3]."""
     n_el, n_qp = w.shape
-    for chunk in prange((n_el + CHUNK - 1) // CHUNK):
-        G = np.empty((3, 3))
-        k = np.empty(3)
-        m = np.empty(3)
-        for e in range(chunk * CHUNK, min(n_el, (chunk + 1) * CHUNK)):
-            for q in range(n_qp):
-                _thickness(F, frame, e, q, G, k)
-                for i in range(3):
-                    m[i] = G[i, 0] * k[0] + G[i, 1] * k[1] + G[i, 2] * k[2]
-                c = w[e, q] * b[e, q] * T[e, q] * T[e, q]
-                for a in range(8):
-                    d = c * (m[0] * dN[e, q, a, 0] + m[1] * dN[e, q, a, 1] + m[2] * dN[e, q, a, 2])
-                    fe[e, a, 0] += d * k[0]
-                    fe[e, a, 1] += d * k[1]
-                    fe[e, a, 2] += d * k[2]
+    for e in prange(n_el):
+        for q in range(n_qp):
+            _, g00, g01, g02, g10, g11, g12, g20, g21, g22, k0, k1, k2 = _thickness(F, frame, e, q)
+            m0 = g00 * k0 + g01 * k1 + g02 * k2
+            m1 = g10 * k0 + g11 * k1 + g12 * k2
+            m2 = g20 * k0 + g21 * k1 + g22 * k2
+            c = w[e, q] * b[e, q] * T[e, q] * T[e, q]
+            for a in range(8):
+                d = c * (m0 * dN[e, q, a, 0] + m1 * dN[e, q, a, 1] + m2 * dN[e, q, a, 2])
+                fe[e, a, 0] += d * k0
+                fe[e, a, 1] += d * k1
+                fe[e, a, 2] += d * k2
 
 
 class Hex8AnsTbarGroup(Hex8AnsGroup):
