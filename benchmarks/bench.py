@@ -31,6 +31,9 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
+sys.path.insert(0, str(ROOT))  # the fdeck beside this file, not whichever one is installed (worktrees)
+ENV = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, (str(ROOT), os.environ.get("PYTHONPATH")))))
+"""Environment of the `fdeck` subprocesses: they import the fdeck beside this file, as the in-process cases do."""
 
 MATERIALS = {
     "linear_elastic": {"type": "linear_elastic", "density": 1e-9, "youngs_modulus": 1.0e4, "poisson_ratio": 0.3},
@@ -104,12 +107,18 @@ def measure(form: str, mat: str, divisions, cycles: int, threads: int) -> dict:
             "bytes_per_element": mem / n, "status": res.status}
 
 
+def _commit() -> str:
+    """The commit of the measured tree (with "+changes" when it differs from it), or "" outside git."""
+    r = subprocess.run(["git", "describe", "--always", "--dirty=+changes"], capture_output=True, text=True, cwd=ROOT)
+    return r.stdout.strip() if r.returncode == 0 else ""
+
+
 def compile_times() -> dict:
     """Cold numba compile (empty cache dir) and cached start-up of `fdeck run` on the wave-bar deck; the flagship
     deck's compile time cold and cached."""
     out = {}
     with tempfile.TemporaryDirectory() as cache, tempfile.TemporaryDirectory() as res:
-        env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+        env = dict(ENV, NUMBA_CACHE_DIR=cache)
         cmd = [sys.executable, "-m", "fdeck.cli", "run", str(ROOT / "decks" / "wave_bar.yaml"), "-o", res]
         for label in ("cold_run_s", "cached_run_s"):
             t0 = time.perf_counter()
@@ -124,7 +133,7 @@ def compile_times() -> dict:
     # the run reports it (summary.json's compile_time: mostly the law's kernel; the kernels first called in the run
     # add a few seconds to its first cycles), with a cache of its own, then cached; two whole flagship runs
     with tempfile.TemporaryDirectory() as cache, tempfile.TemporaryDirectory() as res:
-        env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+        env = dict(ENV, NUMBA_CACHE_DIR=cache)
         cmd = [sys.executable, "-m", "fdeck.cli", "run", str(ROOT / "decks" / "bias_extension_3weave.yaml"), "-o",
                res, "--overwrite"]
         summary = Path(res) / "summary.json"
@@ -220,7 +229,8 @@ def main():
                 print(f"{form:8s} {mat:22s} {row['elements']:7d} el  {threads} thr  "
                       f"{row['us_per_element_cycle']:.3f} us/el-cycle  ({row['us_per_element_cycle_elements_only']:.3f}"
                       f" in elements)  {row['bytes_per_element']:.0f} B/el", flush=True)
-    machine = {"cpu_count": os.cpu_count(), "platform": platform.platform(), "python": platform.python_version()}
+    machine = {"cpu_count": os.cpu_count(), "platform": platform.platform(), "python": platform.python_version(),
+               "commit": _commit()}
     if args.only:  # a side-by-side comparison of a few cases, measured in the same minutes
         Path(args.results).write_text(json.dumps({"machine": machine, "runs": rows, "scaling": [], "startup": {}},
                                                  indent=1) + "\n")

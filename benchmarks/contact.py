@@ -22,6 +22,7 @@ import tempfile
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE.parent))  # the fdeck beside this file, not an installed one
 
 
 def uv_sphere(radius: float, n: int):

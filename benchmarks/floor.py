@@ -44,6 +44,7 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 sys.path.insert(0, str(HERE))
+sys.path.insert(0, str(ROOT))  # the fdeck beside this file, not an installed one
 
 KERNELS = [("reduced", "linear_elastic"), ("full", "linear_elastic"), ("fbar", "linear_elastic"),
            ("reduced", "fabric_hyper_3weave"), ("full", "fabric_hyper_3weave"), ("fbar", "fabric_hyper_3weave"),

@@ -32,6 +32,7 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
+sys.path.insert(0, str(HERE.parent))  # the fdeck beside this file, not an installed one
 import forming_cost as fc  # noqa: E402  (snapshot, environment and timed runs shared with the forming table)
 import peers  # noqa: E402  (the peer block deck)
 
