@@ -66,7 +66,8 @@ def test_pass_counter_sees_the_kernels_scratch_arrays():
     8 points two Cholesky factors of a 3 x 3 matrix (C and C~), each 3 square roots and 3 reciprocals of its
     diagonal, and one volume mean of the symmetric modification's upper triangle (6 divisions by the element
     volume): 48 square roots and 8 x 6 + 6 = 54 divisions, no transcendental. Without the scratch counting the
-    volume mean's 6 divisions (of sums held in a scratch array by a counted volume) are missed. Counts are integers: tolerance zero."""
+    volume mean's 6 divisions (of sums held in a scratch array by a counted volume) are missed. Counts are
+    integers: tolerance zero."""
     env = dict(os.environ, NUMBA_DISABLE_JIT="1")
     r = subprocess.run([sys.executable, "-c", PASSES, str(ROOT / "benchmarks")], capture_output=True, text=True,
                        env=env, cwd=ROOT, timeout=120)

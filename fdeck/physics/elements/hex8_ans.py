@@ -34,11 +34,12 @@ components J0^-1 S J0^-T differ between points (any non-parallelepiped element),
 distorted patch carried 3.8e-2 of the largest force (measured 2026-11-26); with it sum_q w_q S : d(K_q - K_bar) = 0
 for every uniform S, the mean-dilatation idea of B-bar applied to the shear modification. On parallelepipeds K_bar
 vanishes to first order in the strain (the parasitic shears are odd in the natural coordinates), so block meshes
-bend as before. Every term is a dot product of current vectors, so C~ is objective. The material sees F~ = F Rc^-1 R~, Rc and R~ the upper Cholesky factors of
-C = F^T F and C~ (F~^T F~ = C~, F~ = F when C~ = C, F~ -> Q F~ when F -> Q F), so any law of F (fabric_hyper,
-linear_elastic, neo_hookean) serves unchanged; W = sum_q w_q psi(C~_q) and the forces are its exact derivative
-(``forces_ans``): dW = sum_q w_q (F S : dF + S~_ij dDelta_ij) with S = F~^-1 P~ and
-S~ = J0^-1 (S - S_bar) J0^-T, S_bar the element's volume mean of S (the mean-free modification's share).
+bend as before. Every term is a dot product of current vectors, so C~ is objective. The material sees
+F~ = F Rc^-1 R~, Rc and R~ the upper Cholesky factors of C = F^T F and C~ (F~^T F~ = C~, F~ = F when C~ = C,
+F~ -> Q F~ when F -> Q F), so any law of F (fabric_hyper, linear_elastic, neo_hookean) serves unchanged;
+W = sum_q w_q psi(C~_q) and the forces are its exact derivative (``forces_ans``): dW = sum_q w_q (F S : dF +
+S~_ij dDelta_ij) with S = F~^-1 P~ and S~ = J0^-1 (S - S_bar) J0^-T, S_bar the element's volume mean of S (the
+mean-free modification's share).
 
 Known limits: normal strains are fully integrated, so nearly incompressible isotropic laws lock volumetrically as
 with ``full`` (fabrics are compressible: use ``fbar`` for rubber); C~ keeps the true normal strain along the
@@ -59,7 +60,7 @@ import numpy as np
 
 from fdeck.compile.errors import CompileError
 from fdeck.jit import njit_inline, njit_parallel, prange
-from fdeck.physics.elements.hex8 import GAUSS_2, Hex8Group, _deformation_gradients, _det_at, shape_gradients_local
+from fdeck.physics.elements.hex8 import GAUSS_2, Hex8Group, shape_gradients_local
 from fdeck.registry import FormulationKind, register_formulation
 
 PAIRS = ((0, 1), (1, 2), (0, 2))
@@ -100,9 +101,9 @@ def prepare_ans(X: np.ndarray, conn: np.ndarray) -> dict:
 
 
 CHUNK = 32
-"""Elements per scratch set: the kernels allocate their 3x3 scratch once per CHUNK elements, not per element (13
-allocations per element cost a tenth of the kinematics: 0.93 -> 0.82 us per element, ``benchmarks/kernel_parts.py
-ans_tbar fabric_hyper_3weave``, bitwise the same)."""
+"""Elements per scratch set: the kernels allocate their scratch arrays once per CHUNK elements, not per element
+(when the kinematics allocated its 13 per element, that cost a tenth of it: 0.93 -> 0.82 us per element,
+``benchmarks/kernel_parts.py ans_tbar fabric_hyper_3weave``, bitwise the same)."""
 
 
 @njit_inline
@@ -132,23 +133,9 @@ def _natural(A, G, e, s, i, j):
 
 
 @njit_inline
-def _inv_at(A, e, q, out):
-    """out (3, 3) = A[e, q]^-1 (A (n_el, n_qp, 3, 3)), indexed in place (the arithmetic of ``tensor.inv3``)."""
-    r = 1.0 / _det_at(A, e, q)
-    out[0, 0] = (A[e, q, 1, 1] * A[e, q, 2, 2] - A[e, q, 1, 2] * A[e, q, 2, 1]) * r
-    out[0, 1] = (A[e, q, 0, 2] * A[e, q, 2, 1] - A[e, q, 0, 1] * A[e, q, 2, 2]) * r
-    out[0, 2] = (A[e, q, 0, 1] * A[e, q, 1, 2] - A[e, q, 0, 2] * A[e, q, 1, 1]) * r
-    out[1, 0] = (A[e, q, 1, 2] * A[e, q, 2, 0] - A[e, q, 1, 0] * A[e, q, 2, 2]) * r
-    out[1, 1] = (A[e, q, 0, 0] * A[e, q, 2, 2] - A[e, q, 0, 2] * A[e, q, 2, 0]) * r
-    out[1, 2] = (A[e, q, 0, 2] * A[e, q, 1, 0] - A[e, q, 0, 0] * A[e, q, 1, 2]) * r
-    out[2, 0] = (A[e, q, 1, 0] * A[e, q, 2, 1] - A[e, q, 1, 1] * A[e, q, 2, 0]) * r
-    out[2, 1] = (A[e, q, 0, 1] * A[e, q, 2, 0] - A[e, q, 0, 0] * A[e, q, 2, 1]) * r
-    out[2, 2] = (A[e, q, 0, 0] * A[e, q, 1, 1] - A[e, q, 0, 1] * A[e, q, 1, 0]) * r
-
-
-@njit_inline
 def _inv3_at(A, e, q):
-    """The nine components of A[e, q]^-1 (A (n_el, n_qp, 3, 3)) as scalars, row by row (``_inv_at``'s arithmetic)."""
+    """The nine components of A[e, q]^-1 (A (n_el, n_qp, 3, 3)) as scalars, row by row: the cofactors over
+    ``hex8._det_at``'s determinant, one division (``tensor.inv3``'s arithmetic)."""
     a00, a01, a02 = A[e, q, 0, 0], A[e, q, 0, 1], A[e, q, 0, 2]
     a10, a11, a12 = A[e, q, 1, 0], A[e, q, 1, 1], A[e, q, 1, 2]
     a20, a21, a22 = A[e, q, 2, 0], A[e, q, 2, 1], A[e, q, 2, 2]
@@ -201,9 +188,10 @@ def kinematics_ans(x, conn, b, dN, w, dxi_s, index, Jinv, Gq, Gs, F, J, Fans, F0
 def _kinematics_element(x, conn, b, dN, w, dxi_s, index, Jinv, Gq, Gs, F, J, Fans, F0s, gs, e,
                         xe, C0, Cq, Kq, Kbar, W, T, A):
     """``kinematics_ans`` for element e, with the chunk's scratch: xe (8, 3) the element's nodes, Cq, Kq (8, 3, 3),
-    A (6,), the rest (3, 3). The element's nodes are gathered once and what stays within a point is kept in
-    scalars; every value is formed by the same operations in the same order as before (docs/kernels.md, item 13),
-    the zeros of the natural correction's diagonal and of Rc^-1 Ra's lower triangle aside."""
+    A (6,), the rest (3, 3); Cq, Kq and Kbar hold their upper triangles only (symmetric; the lower ones are left
+    unwritten and never read). The element's nodes are gathered once and what stays within a point is kept in
+    scalars; every value is formed by the same operations in the same order as before (docs/kernels.md, item 13).
+    """
     for a in range(8):
         n = conn[e, a]
         xe[a, 0], xe[a, 1], xe[a, 2] = x[n, 0], x[n, 1], x[n, 2]
@@ -268,17 +256,17 @@ def _kinematics_element(x, conn, b, dN, w, dxi_s, index, Jinv, Gq, Gs, F, J, Fan
             c00 + (Kq[q, 0, 0] - Kbar[0, 0]), c01 + (Kq[q, 0, 1] - Kbar[0, 1]), c02 + (Kq[q, 0, 2] - Kbar[0, 2]),
             c11 + (Kq[q, 1, 1] - Kbar[1, 1]), c12 + (Kq[q, 1, 2] - Kbar[1, 2]), c22 + (Kq[q, 2, 2] - Kbar[2, 2]))
         _, rc01, rc02, _, rc12, _, i0, i1, i2 = _chol_upper(c00, c01, c02, c11, c12, c22)
-        # F~ = F M, M = Rc^-1 Ra upper triangular (back substitution)
-        m22 = ra22 * i2
-        m12 = (ra12 - rc12 * m22) * i1
-        m11 = ra11 * i1
+        # F~ = F M, M = Rc^-1 Ra by back substitution; M's lower triangle is zero but formed all the same, so that
+        # a singular C (an infinite reciprocal) still makes all of F~ nan, as it always did
+        m20, m21, m22 = 0.0 * i2, 0.0 * i2, ra22 * i2
+        m10, m11, m12 = (0.0 - rc12 * m20) * i1, (ra11 - rc12 * m21) * i1, (ra12 - rc12 * m22) * i1
+        m00 = (ra00 - rc01 * m10 - rc02 * m20) * i0
+        m01 = (ra01 - rc01 * m11 - rc02 * m21) * i0
         m02 = (ra02 - rc01 * m12 - rc02 * m22) * i0
-        m01 = (ra01 - rc01 * m11) * i0
-        m00 = ra00 * i0
         for i in range(3):
             fi0, fi1, fi2 = F[e, q, i, 0], F[e, q, i, 1], F[e, q, i, 2]
-            Fans[e, q, i, 0] = fi0 * m00
-            Fans[e, q, i, 1] = fi0 * m01 + fi1 * m11
+            Fans[e, q, i, 0] = fi0 * m00 + fi1 * m10 + fi2 * m20
+            Fans[e, q, i, 1] = fi0 * m01 + fi1 * m11 + fi2 * m21
             Fans[e, q, i, 2] = fi0 * m02 + fi1 * m12 + fi2 * m22
 
 

@@ -14,9 +14,9 @@ with F' the ``ans`` gradient F~ (F~^T F~ = C~, the assumed-shear right Cauchy-Gr
 its thickness stretch set to the true one, below), m a scalar measure at the point and m_bar its element mean:
 
 * ``ans_fbar``: m = det F~ at the point, m_bar = (1/V0) sum_q w_q det F_q from the *true* F (m_bar V0 is the
-  current element volume). F-bar on top of the assumed shears: it cures volumetric locking of isotropic laws too, but with
-  a bimodular fabric it passes the element-scale volume change of the compressed, soft fibres into the stiff weft
-  and compaction: cantilevers with 1 % fibre compression are 12-18 % too stiff on four layers
+  current element volume). F-bar on top of the assumed shears: it cures volumetric locking of isotropic laws too,
+  but with a bimodular fabric it passes the element-scale volume change of the compressed, soft fibres into the
+  stiff weft and compaction: cantilevers with 1 % fibre compression are 12-18 % too stiff on four layers
   (``test_bending_locking``).
 * ``ans_tbar``: m = T = (f3 . C^-1 . f3)^(-1/2), the stretch normal to the deformed fibre plane from the *true* C
   (the exponential of fabric_hyper's compaction invariant; f3 the reference through-thickness direction, third row
