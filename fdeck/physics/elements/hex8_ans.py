@@ -60,7 +60,7 @@ import numpy as np
 
 from fdeck.compile.errors import CompileError
 from fdeck.jit import njit_inline, njit_parallel, prange
-from fdeck.physics.elements.hex8 import GAUSS_2, Hex8Group, shape_gradients_local
+from fdeck.physics.elements.hex8 import GAUSS_2, Hex8Group, _gradient, shape_gradients_local
 from fdeck.registry import FormulationKind, register_formulation
 
 PAIRS = ((0, 1), (1, 2), (0, 2))
@@ -99,6 +99,9 @@ def prepare_ans(X: np.ndarray, conn: np.ndarray) -> dict:
     return dict(dxi_s=dxi_s, index=index, Jinv=np.ascontiguousarray(np.linalg.inv(Gq)),
                 Gq=np.ascontiguousarray(Gq), Gs=np.ascontiguousarray(Gs))
 
+
+EIGHT = np.arange(8).reshape(1, 8)
+"""The identity row of slots: ``hex8._gradient`` reads the element's own gathered nodes through it."""
 
 CHUNK = 32
 """Elements per scratch set: the kernels allocate their scratch arrays once per CHUNK elements, not per element
@@ -217,7 +220,7 @@ def _kinematics_element(x, conn, b, dN, w, dxi_s, index, Jinv, Gq, Gs, F, J, Fan
         A[s] = (gs[e, s, 0, 0] * gs[e, s, 0, 1] + gs[e, s, 1, 0] * gs[e, s, 1, 1] + gs[e, s, 2, 0] * gs[e, s, 2, 1]
                 - _natural(C0, Gs, e, s, i, j))
     for q in range(8):
-        f00, f01, f02, f10, f11, f12, f20, f21, f22 = _gradient(xe, dN, e, q)
+        f00, f01, f02, f10, f11, f12, f20, f21, f22 = _gradient(xe, EIGHT, 0, dN, e, q)
         F[e, q, 0, 0], F[e, q, 0, 1], F[e, q, 0, 2] = f00, f01, f02
         F[e, q, 1, 0], F[e, q, 1, 1], F[e, q, 1, 2] = f10, f11, f12
         F[e, q, 2, 0], F[e, q, 2, 1], F[e, q, 2, 2] = f20, f21, f22
@@ -268,26 +271,6 @@ def _kinematics_element(x, conn, b, dN, w, dxi_s, index, Jinv, Gq, Gs, F, J, Fan
             Fans[e, q, i, 0] = fi0 * m00 + fi1 * m10 + fi2 * m20
             Fans[e, q, i, 1] = fi0 * m01 + fi1 * m11 + fi2 * m21
             Fans[e, q, i, 2] = fi0 * m02 + fi1 * m12 + fi2 * m22
-
-
-@njit_inline
-def _gradient(xe, dN, e, q):
-    """The nine components of F = sum_a x_a (x) dN[e, q, a] at point q from the element's nodes xe (8, 3), summed
-    in registers over the nodes in order (``hex8._deformation_gradients``'s arithmetic)."""
-    f00 = f01 = f02 = f10 = f11 = f12 = f20 = f21 = f22 = 0.0
-    for a in range(8):
-        x0, x1, x2 = xe[a, 0], xe[a, 1], xe[a, 2]
-        d0, d1, d2 = dN[e, q, a, 0], dN[e, q, a, 1], dN[e, q, a, 2]
-        f00 += x0 * d0
-        f01 += x0 * d1
-        f02 += x0 * d2
-        f10 += x1 * d0
-        f11 += x1 * d1
-        f12 += x1 * d2
-        f20 += x2 * d0
-        f21 += x2 * d1
-        f22 += x2 * d2
-    return f00, f01, f02, f10, f11, f12, f20, f21, f22
 
 
 @njit_inline
